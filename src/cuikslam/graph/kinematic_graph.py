@@ -1,0 +1,218 @@
+"""The kinematic graph: poses and landmarks as interval variables, measurements as factors.
+
+Vocabulary follows GTSAM: you ``add`` priors, odometry (between) factors and
+range-bearing factors to a graph; the graph encodes them as arrays for the compiled
+narrowing operators (:mod:`cuikslam.narrowing`).
+
+Variables live in one flat index space: 3 per pose (x, y, theta), 2 per landmark (x, y),
+and 2 per factor (its measured angle and length, narrowed like everything else).
+Initial domains: priors where given, the measured intervals for measurements, and
+(-inf, inf) elsewhere.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cuikslam.interval._rounding import PI_HI
+from cuikslam.log.records import (
+    Bounds,
+    LandmarkPrior,
+    Log,
+    Observation,
+    Odometry,
+    PosePrior,
+)
+from cuikslam.narrowing._factors import N_SLOTS, OBSERVATION, ODOMETRY
+
+__all__ = ["ANY_ANGLE", "ANY_LENGTH", "KinematicGraph"]
+
+ANY_ANGLE: Bounds = (-PI_HI, PI_HI)
+"""The domain of an unmeasured bearing: every angle."""
+ANY_LENGTH: Bounds = (0.0, math.inf)
+"""The domain of an unmeasured range."""
+
+
+@dataclass
+class KinematicGraph:
+    """Poses, landmarks and the factors between them, encoded as arrays.
+
+    Build one with :meth:`from_log` or with the ``add_*`` methods. ``domains()`` gives the
+    initial boxes; :func:`cuikslam.narrowing.propagate` narrows them.
+    """
+
+    pose_ids: list[int] = field(default_factory=list)
+    landmark_ids: list[str] = field(default_factory=list)
+    landmark_classes: list[str] = field(default_factory=list)
+    _pose_var: dict[int, int] = field(default_factory=dict)
+    _landmark_var: dict[str, int] = field(default_factory=dict)
+    _lo: list[float] = field(default_factory=list)
+    _hi: list[float] = field(default_factory=list)
+    _factors: list[tuple[int, ...]] = field(default_factory=list)
+    factor_lines: list[int] = field(default_factory=list)
+    """Log line of each factor (0 when built by hand), for messages."""
+
+    # ----------------------------------------------------------------- building
+    def _new_vars(self, bounds: Iterable[Bounds]) -> int:
+        first = len(self._lo)
+        for lo, hi in bounds:
+            self._lo.append(float(lo))
+            self._hi.append(float(hi))
+        return first
+
+    def add_pose(self, pose: int) -> int:
+        """Declare pose ``pose`` (no-op if known); returns the index of its x variable."""
+        if pose not in self._pose_var:
+            self._pose_var[pose] = self._new_vars([(-math.inf, math.inf)] * 3)
+            self.pose_ids.append(pose)
+        return self._pose_var[pose]
+
+    def add_landmark(self, landmark: str, landmark_class: str = "") -> int:
+        """Declare a landmark (no-op if known); returns the index of its x variable."""
+        if landmark not in self._landmark_var:
+            self._landmark_var[landmark] = self._new_vars([(-math.inf, math.inf)] * 2)
+            self.landmark_ids.append(landmark)
+            self.landmark_classes.append(landmark_class)
+        return self._landmark_var[landmark]
+
+    def _narrow_initial(self, var: int, bounds: Bounds) -> None:
+        self._lo[var] = max(self._lo[var], float(bounds[0]))
+        self._hi[var] = min(self._hi[var], float(bounds[1]))
+
+    def add_pose_prior(self, pose: int, x: Bounds, y: Bounds, theta: Bounds) -> None:
+        """A box known to contain the pose."""
+        v = self.add_pose(pose)
+        for i, b in enumerate((x, y, theta)):
+            self._narrow_initial(v + i, b)
+
+    def add_landmark_prior(self, landmark: str, x: Bounds, y: Bounds, landmark_class: str = "") -> None:
+        """A box known to contain the landmark."""
+        v = self.add_landmark(landmark, landmark_class)
+        self._narrow_initial(v, x)
+        self._narrow_initial(v + 1, y)
+
+    def add_odometry(
+        self, source: int, target: int, turn: Bounds, distance: Bounds, line: int = 0
+    ) -> int:
+        """Turn by ``turn`` then drive ``distance`` from ``source`` to ``target``; returns the factor index."""
+        a = self.add_pose(source)
+        b = self.add_pose(target)
+        m = self._new_vars([turn, (max(0.0, distance[0]), distance[1])])
+        self._factors.append((ODOMETRY, a, a + 1, a + 2, b, b + 1, b + 2, m, m + 1))
+        self.factor_lines.append(line)
+        return len(self._factors) - 1
+
+    def add_observation(
+        self,
+        pose: int,
+        landmark: str,
+        range: Bounds | None = None,  # noqa: A002 - the SLAM word
+        bearing: Bounds | None = None,
+        landmark_class: str = "",
+        line: int = 0,
+    ) -> int:
+        """Landmark ``landmark`` seen from ``pose`` at ``range`` and ``bearing`` (either may be None)."""
+        a = self.add_pose(pose)
+        b = self.add_landmark(landmark, landmark_class)
+        bearing_b = ANY_ANGLE if bearing is None else bearing
+        range_b = ANY_LENGTH if range is None else (max(0.0, range[0]), range[1])
+        m = self._new_vars([bearing_b, range_b])
+        self._factors.append((OBSERVATION, a, a + 1, a + 2, b, b + 1, -1, m, m + 1))
+        self.factor_lines.append(line)
+        return len(self._factors) - 1
+
+    @classmethod
+    def from_log(cls, log: Log, assignment: list[str] | None = None) -> KinematicGraph:
+        """The graph of a log. ``assignment`` gives a landmark id per observation (log order);
+        by default each observation's own ``landmark`` id, which must then be present."""
+        graph = cls()
+        observation_index = 0
+        for record in log.records:
+            if isinstance(record, PosePrior):
+                graph.add_pose_prior(record.pose, record.x, record.y, record.theta)
+            elif isinstance(record, Odometry):
+                graph.add_odometry(
+                    record.source, record.target, record.turn, record.distance, record.line
+                )
+            elif isinstance(record, LandmarkPrior):
+                graph.add_landmark_prior(record.landmark, record.x, record.y, record.landmark_class)
+            elif isinstance(record, Observation):
+                landmark = (
+                    assignment[observation_index] if assignment is not None else record.landmark
+                )
+                if landmark is None:
+                    raise ValueError(
+                        f"{log.path}:{record.line}: observation has no landmark id; "
+                        "solve it with unknown correspondence"
+                    )
+                graph.add_observation(
+                    record.pose,
+                    landmark,
+                    record.range,
+                    record.bearing,
+                    record.landmark_class,
+                    record.line,
+                )
+                observation_index += 1
+        return graph
+
+    # ----------------------------------------------------------------- arrays
+    @property
+    def n_variables(self) -> int:
+        return len(self._lo)
+
+    @property
+    def n_factors(self) -> int:
+        return len(self._factors)
+
+    def domains(self) -> tuple[np.ndarray, np.ndarray]:
+        """Fresh copies of the initial lower and upper bounds of every variable."""
+        return np.array(self._lo, dtype=np.float64), np.array(self._hi, dtype=np.float64)
+
+    def factor_table(self) -> np.ndarray:
+        """The factors as an int64 array of shape (n_factors, 9): kind, then 8 variable indices."""
+        if not self._factors:
+            return np.zeros((0, 1 + N_SLOTS), dtype=np.int64)
+        return np.array(self._factors, dtype=np.int64)
+
+    def adjacency(self) -> tuple[np.ndarray, np.ndarray]:
+        """Factors of each variable, CSR layout ``(ptr, factors)``."""
+        table = self.factor_table()
+        counts = np.zeros(self.n_variables + 1, dtype=np.int64)
+        pairs: list[tuple[int, int]] = []
+        for f, row in enumerate(table):
+            for v in row[1:]:
+                if v >= 0:
+                    pairs.append((int(v), f))
+        pairs.sort()
+        for v, _ in pairs:
+            counts[v + 1] += 1
+        ptr = np.cumsum(counts)
+        factors = np.array([f for _, f in pairs], dtype=np.int64)
+        return ptr, factors
+
+    def pose_index(self, pose: int) -> int:
+        """Index of the x variable of ``pose`` (y and theta follow)."""
+        return self._pose_var[pose]
+
+    def landmark_index(self, landmark: str) -> int:
+        """Index of the x variable of ``landmark`` (y follows)."""
+        return self._landmark_var[landmark]
+
+    def pose_boxes(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """Pose boxes as an array of shape (n_poses, 3, 2): [pose, (x, y, theta), (lo, hi)]."""
+        idx = np.array([self._pose_var[p] for p in self.pose_ids], dtype=np.int64)
+        cols = idx[:, None] + np.arange(3)[None, :]
+        return np.stack([lo[cols], hi[cols]], axis=-1)
+
+    def landmark_boxes(self, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+        """Landmark boxes as an array of shape (n_landmarks, 2, 2): [landmark, (x, y), (lo, hi)]."""
+        idx = np.array([self._landmark_var[m] for m in self.landmark_ids], dtype=np.int64)
+        if idx.size == 0:
+            return np.zeros((0, 2, 2))
+        cols = idx[:, None] + np.arange(2)[None, :]
+        return np.stack([lo[cols], hi[cols]], axis=-1)

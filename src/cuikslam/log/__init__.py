@@ -1,0 +1,29 @@
+"""The log layer: the JSON Lines log format (``docs/log-format.md``) to and from records."""
+
+from cuikslam.log.errors import LogFormatError
+from cuikslam.log.reader import parse_log_lines, read_log_file
+from cuikslam.log.records import (
+    Bounds,
+    LandmarkPrior,
+    Log,
+    Observation,
+    Odometry,
+    PosePrior,
+    Record,
+)
+from cuikslam.log.writer import log_to_lines, write_log_file
+
+__all__ = [
+    "Bounds",
+    "LandmarkPrior",
+    "Log",
+    "LogFormatError",
+    "Observation",
+    "Odometry",
+    "PosePrior",
+    "Record",
+    "log_to_lines",
+    "parse_log_lines",
+    "read_log_file",
+    "write_log_file",
+]

@@ -1,0 +1,184 @@
+"""Validation of one JSON record of the log format into a record dataclass.
+
+Each check raises :class:`Problem` with a sentence for a human; the reader adds the
+file and line. Cross-record checks (which poses are reached, landmark classes) live in
+:mod:`cuikslam.log.reader`.
+"""
+
+from __future__ import annotations
+
+import difflib
+import json
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from cuikslam.log.records import Bounds, LandmarkPrior, Observation, Odometry, PosePrior, Record
+
+__all__ = ["RECORD_TYPES", "Problem", "record_from_json"]
+
+
+class Problem(Exception):
+    """A record breaks the format; the message says how (no file or line yet)."""
+
+
+@dataclass(frozen=True)
+class _Schema:
+    required: tuple[str, ...]
+    optional: tuple[str, ...]
+    build: Callable[[dict[str, Any], int], Record]
+
+    @property
+    def allowed(self) -> tuple[str, ...]:
+        return (*self.required, *self.optional, "time")
+
+
+def _show(value: Any) -> str:
+    try:
+        shown = json.dumps(value, allow_nan=False)
+    except (TypeError, ValueError):
+        shown = repr(value)
+    return shown if len(shown) <= 60 else shown[:57] + "..."
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _finite(value: int | float, name: str) -> float:
+    try:
+        number = float(value)
+    except OverflowError:
+        number = math.inf
+    if not math.isfinite(number):
+        raise Problem(f'field "{name}" holds {_show(value)}, which is not a finite number')
+    return number
+
+
+def _interval(value: Any, name: str, *, non_negative: bool = False) -> Bounds:
+    """``[lo, hi]`` with finite numbers, ``lo <= hi`` (and ``lo >= 0`` if asked)."""
+    if not (isinstance(value, list) and len(value) == 2 and all(map(_is_number, value))):
+        raise Problem(
+            f'field "{name}" must be an interval [lo, hi] of two numbers, got {_show(value)}'
+        )
+    lo, hi = (_finite(v, name) for v in value)
+    if lo > hi:
+        raise Problem(f'field "{name}" is the interval [{lo!r}, {hi!r}] with lo > hi')
+    if non_negative and lo < 0:
+        raise Problem(
+            f'field "{name}" is the interval [{lo!r}, {hi!r}]; a {name} cannot be negative'
+            " (need lo >= 0)"
+        )
+    return (lo, hi)
+
+
+def _pose_id(value: Any, name: str) -> int:
+    """A non-negative JSON integer (``1.0`` and ``true`` are refused)."""
+    if not isinstance(value, int) or isinstance(value, bool) or value < 0:
+        raise Problem(f'field "{name}" must be a non-negative integer pose id, got {_show(value)}')
+    return value
+
+
+def _name(value: Any, name: str) -> str:
+    """A non-empty string."""
+    if not isinstance(value, str) or not value:
+        raise Problem(f'field "{name}" must be a non-empty string, got {_show(value)}')
+    return value
+
+
+def _prior(f: dict[str, Any], line: int) -> PosePrior:
+    return PosePrior(
+        pose=_pose_id(f["pose"], "pose"),
+        x=_interval(f["x"], "x"),
+        y=_interval(f["y"], "y"),
+        theta=_interval(f["theta"], "theta"),
+        line=line,
+    )
+
+
+def _odometry(f: dict[str, Any], line: int) -> Odometry:
+    source = _pose_id(f["from"], "from")
+    target = _pose_id(f["to"], "to")
+    if source == target:
+        raise Problem(f"odometry from pose {source} to itself; from and to must differ")
+    return Odometry(
+        source=source,
+        target=target,
+        turn=_interval(f["turn"], "turn"),
+        distance=_interval(f["distance"], "distance", non_negative=True),
+        line=line,
+    )
+
+
+def _observation(f: dict[str, Any], line: int) -> Observation:
+    raw_range, raw_bearing, raw_landmark = (f.get(k) for k in ("range", "bearing", "landmark"))
+    if raw_range is None and raw_bearing is None:
+        raise Problem('observation has neither "range" nor "bearing"; give at least one')
+    return Observation(
+        pose=_pose_id(f["pose"], "pose"),
+        landmark_class=_name(f["class"], "class"),
+        range=None if raw_range is None else _interval(raw_range, "range", non_negative=True),
+        bearing=None if raw_bearing is None else _interval(raw_bearing, "bearing"),
+        landmark=None if raw_landmark is None else _name(raw_landmark, "landmark"),
+        line=line,
+    )
+
+
+def _landmark(f: dict[str, Any], line: int) -> LandmarkPrior:
+    return LandmarkPrior(
+        landmark=_name(f["id"], "id"),
+        landmark_class=_name(f["class"], "class"),
+        x=_interval(f["x"], "x"),
+        y=_interval(f["y"], "y"),
+        line=line,
+    )
+
+
+RECORD_TYPES: dict[str, _Schema] = {
+    "prior": _Schema(("pose", "x", "y", "theta"), (), _prior),
+    "odometry": _Schema(("from", "to", "turn", "distance"), (), _odometry),
+    "observation": _Schema(("pose", "class"), ("range", "bearing", "landmark"), _observation),
+    "landmark": _Schema(("id", "class", "x", "y"), (), _landmark),
+}
+
+_TYPE_LIST = ", ".join(f'"{t}"' for t in RECORD_TYPES)
+
+
+def _json_kind(value: Any) -> str:
+    kinds = {list: "an array", str: "a string", bool: "a boolean", type(None): "null"}
+    return kinds.get(type(value), "a number")
+
+
+def record_from_json(value: Any, line: int) -> Record:
+    """Check one decoded JSON value against the format and build its record."""
+    if not isinstance(value, dict):
+        raise Problem(
+            f'record is {_json_kind(value)}, expected a JSON object like {{"type": "prior", ...}}'
+        )
+    if "type" not in value:
+        raise Problem(f'record has no "type" field; expected one of {_TYPE_LIST}')
+    kind = value["type"]
+    if not isinstance(kind, str) or kind not in RECORD_TYPES:
+        raise Problem(f"unknown record type {_show(kind)}; expected one of {_TYPE_LIST}")
+    schema = RECORD_TYPES[kind]
+    fields = {k: v for k, v in value.items() if k != "type"}
+    for name in fields:
+        if name not in schema.allowed:
+            close = difflib.get_close_matches(name, schema.allowed, n=1)
+            hint = f' (did you mean "{close[0]}"?)' if close else ""
+            raise Problem(
+                f'unknown field "{name}" in {kind} record{hint}; allowed fields: '
+                + ", ".join(schema.allowed)
+            )
+    for name in schema.required:
+        if name not in fields:
+            raise Problem(
+                f'{kind} record is missing field "{name}"; required fields: '
+                + ", ".join(schema.required)
+            )
+    if "time" in fields:
+        if not _is_number(fields["time"]):
+            raise Problem(f'field "time" must be a number, got {_show(fields["time"])}')
+        _finite(fields["time"], "time")
+    return schema.build(fields, line)

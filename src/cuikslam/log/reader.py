@@ -1,0 +1,153 @@
+"""Reading a log: JSON Lines text into a validated :class:`~cuikslam.log.records.Log`.
+
+Every problem raises :class:`~cuikslam.log.errors.LogFormatError` naming the file, the
+line and what is wrong, because a log with a silent mistake yields a wrong map that is
+still "guaranteed".
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+from collections.abc import Iterable
+from typing import Any
+
+from cuikslam.log._fields import Problem, record_from_json
+from cuikslam.log.errors import LogFormatError
+from cuikslam.log.records import LandmarkPrior, Log, Observation, Odometry, PosePrior, Record
+
+__all__ = ["parse_log_lines", "read_log_file"]
+
+
+def read_log_file(path: str | os.PathLike[str]) -> Log:
+    """Read and validate the log at ``path`` (UTF-8 JSON Lines, see ``docs/log-format.md``).
+
+    Raises
+    ------
+    LogFormatError
+        If the file cannot be read, is not UTF-8, or breaks the format.
+    """
+    name = os.fspath(path)
+    try:
+        with open(name, encoding="utf-8-sig") as file:
+            content = file.read()
+    except UnicodeDecodeError as err:
+        raise LogFormatError(
+            name, None, f"the file is not UTF-8 text (bad byte at offset {err.start})"
+        ) from err
+    except OSError as err:
+        reason = err.strerror or str(err)
+        raise LogFormatError(name, None, f"cannot read the log: {reason}") from err
+    return parse_log_lines(io.StringIO(content), path=name)
+
+
+def parse_log_lines(lines: Iterable[str], path: str = "<memory>") -> Log:
+    """Validate log lines (1-based numbering; a single ``str`` is split into lines).
+
+    Blank lines and lines starting with ``#`` are skipped. Each record is checked on its
+    own first, then the log as a whole, in file order: a pose must be reached by a
+    prior or an earlier odometry before it is used, and a landmark id keeps one class.
+
+    Raises
+    ------
+    LogFormatError
+        Naming ``path``, the line and the problem.
+    """
+    if isinstance(lines, str):
+        lines = io.StringIO(lines)
+    records = [_parse_line(raw, number, path) for number, raw in _numbered_records(lines)]
+    if not records:
+        raise LogFormatError(path, None, "the log is empty")
+    if not any(isinstance(r, PosePrior) for r in records):
+        raise LogFormatError(
+            path,
+            None,
+            "no pose has a prior: every position would be relative; "
+            'add a {"type": "prior", ...} record',
+        )
+    _check_order(records, path)
+    return Log(records=records, path=path)
+
+
+def _numbered_records(lines: Iterable[str]) -> Iterable[tuple[int, str]]:
+    for number, raw in enumerate(lines, start=1):
+        stripped = raw.strip()
+        if stripped and not stripped.startswith("#"):
+            yield number, stripped
+
+
+def _reject_constant(token: str) -> Any:
+    raise Problem(f"malformed JSON: {token} is not allowed; numbers must be finite")
+
+
+def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+    result: dict[str, Any] = {}
+    for key, value in pairs:
+        if key in result:
+            raise Problem(f'field "{key}" appears twice in the record')
+        result[key] = value
+    return result
+
+
+def _parse_line(raw: str, number: int, path: str) -> Record:
+    try:
+        try:
+            value = json.loads(raw, parse_constant=_reject_constant, object_pairs_hook=_unique_keys)
+        except json.JSONDecodeError as err:
+            raise Problem(f"malformed JSON: {err.msg} (column {err.colno})") from err
+        except ValueError as err:
+            raise Problem(f"malformed JSON: {err}") from err
+        except RecursionError as err:
+            raise Problem("malformed JSON: nested too deeply") from err
+        return record_from_json(value, number)
+    except Problem as problem:
+        raise LogFormatError(path, number, str(problem)) from problem
+
+
+def _check_order(records: list[Record], path: str) -> None:
+    reached: set[int] = set()
+    landmark_seen: dict[str, tuple[str, int]] = {}
+    scan_seen: dict[tuple[int, str], int] = {}
+
+    def fail(record: Record, problem: str) -> None:
+        raise LogFormatError(path, record.line, problem)
+
+    def same_class(record: Observation | LandmarkPrior, landmark: str) -> None:
+        earlier = landmark_seen.setdefault(landmark, (record.landmark_class, record.line))
+        if earlier[0] != record.landmark_class:
+            fail(
+                record,
+                f'landmark "{landmark}" has class "{record.landmark_class}" here but class '
+                f'"{earlier[0]}" on line {earlier[1]}',
+            )
+
+    for record in records:
+        match record:
+            case PosePrior(pose=pose):
+                reached.add(pose)
+            case Odometry(source=source, target=target):
+                if source not in reached:
+                    fail(
+                        record,
+                        f"odometry from pose {source}, which no prior or earlier odometry reaches",
+                    )
+                reached.add(target)
+            case Observation(pose=pose, landmark=landmark):
+                if pose not in reached:
+                    fail(
+                        record,
+                        f"observation from pose {pose}, which no prior or earlier odometry reaches",
+                    )
+                if landmark is not None:
+                    same_class(record, landmark)
+                    earlier_line = scan_seen.setdefault((pose, landmark), record.line)
+                    if earlier_line != record.line:
+                        fail(
+                            record,
+                            f'pose {pose} already observed landmark "{landmark}" on line '
+                            f"{earlier_line}; observations from one pose form one scan and "
+                            "see distinct landmarks",
+                        )
+            case LandmarkPrior(landmark=landmark):
+                same_class(record, landmark)

@@ -1,0 +1,121 @@
+"""The records of a cuikslam log: what the robot measured, in time order.
+
+One dataclass per record type of the JSON Lines log format (``docs/log-format.md``).
+Every measured quantity is a closed interval ``(lo, hi)`` that contains the true value.
+Angles are in radians; headings counter-clockwise from +x, bearings counter-clockwise
+from the robot's heading.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+__all__ = [
+    "Bounds",
+    "LandmarkPrior",
+    "Log",
+    "Observation",
+    "Odometry",
+    "PosePrior",
+    "Record",
+]
+
+Bounds = tuple[float, float]
+"""A closed interval ``(lo, hi)`` with ``lo <= hi``."""
+
+
+@dataclass(frozen=True)
+class PosePrior:
+    """A box known to contain pose ``pose`` (x, y, theta)."""
+
+    pose: int
+    x: Bounds
+    y: Bounds
+    theta: Bounds
+    line: int = 0
+
+
+@dataclass(frozen=True)
+class Odometry:
+    """Turn in place by ``turn``, then drive straight ``distance``: pose ``source`` to ``target``.
+
+    theta_target = theta_source + turn;
+    (x, y)_target = (x, y)_source + distance * (cos theta_target, sin theta_target).
+    """
+
+    source: int
+    target: int
+    turn: Bounds
+    distance: Bounds
+    line: int = 0
+
+
+@dataclass(frozen=True)
+class Observation:
+    """A landmark of kind ``landmark_class`` seen from pose ``pose``.
+
+    ``range`` or ``bearing`` may be ``None`` (bearing-only / range-only sensors).
+    ``landmark`` names the landmark when the correspondence is known, else ``None``.
+    Observations made from the same pose form one scan: they see distinct landmarks.
+    """
+
+    pose: int
+    landmark_class: str
+    range: Bounds | None
+    bearing: Bounds | None
+    landmark: str | None = None
+    line: int = 0
+
+
+@dataclass(frozen=True)
+class LandmarkPrior:
+    """A box known to contain landmark ``landmark`` (a partially known map)."""
+
+    landmark: str
+    landmark_class: str
+    x: Bounds
+    y: Bounds
+    line: int = 0
+
+
+Record = PosePrior | Odometry | Observation | LandmarkPrior
+
+
+@dataclass
+class Log:
+    """A whole log: its records in file order, plus where it came from (for messages)."""
+
+    records: list[Record] = field(default_factory=list)
+    path: str = "<memory>"
+
+    @property
+    def priors(self) -> list[PosePrior]:
+        return [r for r in self.records if isinstance(r, PosePrior)]
+
+    @property
+    def odometry(self) -> list[Odometry]:
+        return [r for r in self.records if isinstance(r, Odometry)]
+
+    @property
+    def observations(self) -> list[Observation]:
+        return [r for r in self.records if isinstance(r, Observation)]
+
+    @property
+    def landmark_priors(self) -> list[LandmarkPrior]:
+        return [r for r in self.records if isinstance(r, LandmarkPrior)]
+
+    @property
+    def pose_ids(self) -> list[int]:
+        """Every pose the log mentions, sorted."""
+        ids: set[int] = set()
+        for r in self.records:
+            if isinstance(r, PosePrior | Observation):
+                ids.add(r.pose)
+            elif isinstance(r, Odometry):
+                ids.update((r.source, r.target))
+        return sorted(ids)
+
+    @property
+    def has_unknown_correspondence(self) -> bool:
+        """True when some observation does not name its landmark."""
+        return any(o.landmark is None for o in self.observations)

@@ -1,0 +1,106 @@
+"""Writing a :class:`~cuikslam.log.records.Log` back to the JSON Lines log format.
+
+Floats are written with :func:`repr` precision, so reading the file back gives
+identical values; the file is replaced atomically so a crash never leaves half a log.
+"""
+
+from __future__ import annotations
+
+import json
+import operator
+import os
+from typing import Any
+
+from cuikslam._atomic import atomic_open
+from cuikslam.log.reader import parse_log_lines
+from cuikslam.log.records import (
+    Bounds,
+    LandmarkPrior,
+    Log,
+    Observation,
+    Odometry,
+    PosePrior,
+    Record,
+)
+
+__all__ = ["log_to_lines", "write_log_file"]
+
+
+def log_to_lines(log: Log) -> list[str]:
+    """One JSON line per record, in order, without newline characters."""
+    return [_record_to_line(record) for record in log.records]
+
+
+def write_log_file(log: Log, path: str | os.PathLike[str], *, validate: bool = True) -> None:
+    """Write ``log`` to ``path`` atomically, one record per line.
+
+    With ``validate`` (the default) the written lines are read back with
+    :func:`~cuikslam.log.reader.parse_log_lines` before the file is committed, so a log
+    that :func:`~cuikslam.log.reader.read_log_file` would refuse is never written.
+
+    Raises
+    ------
+    LogFormatError
+        If ``validate`` and the log breaks the format (``path`` keeps its old content).
+    ValueError, TypeError
+        If a record holds a non-finite number or a value of the wrong type.
+    """
+    lines: list[str] = []
+    with atomic_open(path, "w", encoding="utf-8", newline="\n") as file:
+        for record in log.records:
+            line = _record_to_line(record)
+            file.write(line + "\n")
+            lines.append(line)
+        if validate:
+            parse_log_lines(lines, path=os.fspath(path))
+
+
+def _bounds(value: Bounds) -> list[float]:
+    lo, hi = value
+    return [float(lo), float(hi)]
+
+
+def _record_to_json(record: Record) -> dict[str, Any]:
+    match record:
+        case PosePrior():
+            return {
+                "type": "prior",
+                "pose": operator.index(record.pose),
+                "x": _bounds(record.x),
+                "y": _bounds(record.y),
+                "theta": _bounds(record.theta),
+            }
+        case Odometry():
+            return {
+                "type": "odometry",
+                "from": operator.index(record.source),
+                "to": operator.index(record.target),
+                "turn": _bounds(record.turn),
+                "distance": _bounds(record.distance),
+            }
+        case Observation():
+            fields: dict[str, Any] = {
+                "type": "observation",
+                "pose": operator.index(record.pose),
+                "class": str(record.landmark_class),
+            }
+            if record.range is not None:
+                fields["range"] = _bounds(record.range)
+            if record.bearing is not None:
+                fields["bearing"] = _bounds(record.bearing)
+            if record.landmark is not None:
+                fields["landmark"] = str(record.landmark)
+            return fields
+        case LandmarkPrior():
+            return {
+                "type": "landmark",
+                "id": str(record.landmark),
+                "class": str(record.landmark_class),
+                "x": _bounds(record.x),
+                "y": _bounds(record.y),
+            }
+    raise TypeError(f"not a log record: {record!r}")
+
+
+def _record_to_line(record: Record) -> str:
+    return json.dumps(_record_to_json(record), allow_nan=False)

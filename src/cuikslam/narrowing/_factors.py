@@ -1,0 +1,146 @@
+"""Compiled narrowing operators of the two factor kinds, over array-encoded graphs.
+
+A graph's variables are two float arrays ``lo`` and ``hi`` (one interval per variable:
+pose x, y, theta, landmark x, y, and every measured quantity). A factor is one row of an
+int64 table ``factors[f] = (kind, xa, ya, ta, xb, yb, tb, angle, length)`` naming its
+variables:
+
+- ``ODOMETRY``: pose a -> pose b, tb ≡ ta + turn (mod 2 pi),
+  (xb - xa, yb - ya) = distance (cos tb, sin tb); ``angle`` = turn, ``length`` = distance.
+- ``OBSERVATION``: pose a sees landmark b at (xb, yb) (``tb = -1``),
+  (xb - xa, yb - ya) = range (cos(ta + bearing), sin(ta + bearing)); ``angle`` = bearing,
+  ``length`` = range. Range-only and bearing-only observations are observations whose
+  missing quantity is left free ([-pi, pi] or [0, inf)).
+
+Every quantity of a factor is narrowed, headings and measurements included.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cuikslam._jit import jit
+from cuikslam.interval._arith import add, meet, sub
+from cuikslam.interval._periodic import periodic_meet
+from cuikslam.narrowing._polar import polar_contract, shrunk
+
+ODOMETRY = 0
+OBSERVATION = 1
+
+KIND, XA, YA, TA, XB, YB, TB, ANGLE, LENGTH = range(9)
+N_SLOTS = 8
+"""Variable slots of a factor row: columns 1..8."""
+
+EMPTY_FACTOR = -1
+
+
+@jit
+def _translate(
+    alo: float, ahi: float, blo: float, bhi: float, dlo: float, dhi: float
+) -> tuple[float, float, float, float]:
+    """Narrow a and b under b = a + d."""
+    tlo, thi = add(alo, ahi, dlo, dhi)
+    blo, bhi = meet(blo, bhi, tlo, thi)
+    tlo, thi = sub(blo, bhi, dlo, dhi)
+    alo, ahi = meet(alo, ahi, tlo, thi)
+    return alo, ahi, blo, bhi
+
+
+@jit
+def _rotate(
+    alo: float, ahi: float, blo: float, bhi: float, dlo: float, dhi: float
+) -> tuple[float, float, float, float, float, float]:
+    """Narrow the angles a, b, d under b ≡ a + d (mod 2 pi)."""
+    tlo, thi = add(alo, ahi, dlo, dhi)
+    blo, bhi = periodic_meet(blo, bhi, tlo, thi)
+    tlo, thi = sub(blo, bhi, dlo, dhi)
+    alo, ahi = periodic_meet(alo, ahi, tlo, thi)
+    tlo, thi = sub(blo, bhi, alo, ahi)
+    dlo, dhi = periodic_meet(dlo, dhi, tlo, thi)
+    return alo, ahi, blo, bhi, dlo, dhi
+
+
+@jit
+def narrow_factor(
+    lo: np.ndarray, hi: np.ndarray, row: np.ndarray, rtol: float, max_rounds: int
+) -> int:
+    """Apply the narrowing operator of one factor to ``lo``/``hi`` in place.
+
+    Repeats the factor's sub-operators until no variable shrinks by more than ``rtol``
+    (at most ``max_rounds`` times). Returns a bit mask of the slots (bit s for column
+    s + 1) that shrank by more than ``rtol``, or ``EMPTY_FACTOR`` when the factor has no
+    solution in the box (then nothing is written).
+    """
+    kind = row[KIND]
+    ixa, iya, ita, ixb, iyb = row[XA], row[YA], row[TA], row[XB], row[YB]
+    itb, iang, ilen = row[TB], row[ANGLE], row[LENGTH]
+    xalo, xahi, yalo, yahi, talo, tahi = lo[ixa], hi[ixa], lo[iya], hi[iya], lo[ita], hi[ita]
+    xblo, xbhi, yblo, ybhi = lo[ixb], hi[ixb], lo[iyb], hi[iyb]
+    anglo, anghi, lenlo, lenhi = lo[iang], hi[iang], lo[ilen], hi[ilen]
+    tblo, tbhi = 0.0, 0.0
+    if kind == ODOMETRY:
+        tblo, tbhi = lo[itb], hi[itb]
+    for _ in range(max_rounds):
+        before = (xalo, xahi, yalo, yahi, talo, tahi, xblo, xbhi, yblo, ybhi, tblo, tbhi,
+                  anglo, anghi, lenlo, lenhi)  # fmt: skip
+        if kind == ODOMETRY:
+            talo, tahi, tblo, tbhi, anglo, anghi = _rotate(talo, tahi, tblo, tbhi, anglo, anghi)
+            if talo > tahi or tblo > tbhi or anglo > anghi:
+                return EMPTY_FACTOR
+            plo, phi = tblo, tbhi
+        else:
+            plo, phi = add(talo, tahi, anglo, anghi)
+        dxlo, dxhi = sub(xblo, xbhi, xalo, xahi)
+        dylo, dyhi = sub(yblo, ybhi, yalo, yahi)
+        dxlo, dxhi, dylo, dyhi, lenlo, lenhi, plo, phi = polar_contract(
+            dxlo, dxhi, dylo, dyhi, lenlo, lenhi, plo, phi, rtol, max_rounds
+        )
+        if dxlo > dxhi:
+            return EMPTY_FACTOR
+        xalo, xahi, xblo, xbhi = _translate(xalo, xahi, xblo, xbhi, dxlo, dxhi)
+        yalo, yahi, yblo, ybhi = _translate(yalo, yahi, yblo, ybhi, dylo, dyhi)
+        if kind == ODOMETRY:
+            tblo, tbhi = plo, phi
+        else:
+            # phi = ta + bearing
+            tlo, thi = sub(plo, phi, anglo, anghi)
+            talo, tahi = periodic_meet(talo, tahi, tlo, thi)
+            tlo, thi = sub(plo, phi, talo, tahi)
+            anglo, anghi = periodic_meet(anglo, anghi, tlo, thi)
+        if xalo > xahi or yalo > yahi or xblo > xbhi or yblo > ybhi or talo > tahi:
+            return EMPTY_FACTOR
+        if anglo > anghi:
+            return EMPTY_FACTOR
+        if not (
+            shrunk(before[0], before[1], xalo, xahi, rtol)
+            or shrunk(before[2], before[3], yalo, yahi, rtol)
+            or shrunk(before[4], before[5], talo, tahi, rtol)
+            or shrunk(before[6], before[7], xblo, xbhi, rtol)
+            or shrunk(before[8], before[9], yblo, ybhi, rtol)
+            or shrunk(before[10], before[11], tblo, tbhi, rtol)
+            or shrunk(before[12], before[13], anglo, anghi, rtol)
+            or shrunk(before[14], before[15], lenlo, lenhi, rtol)
+        ):
+            break
+    mask = 0
+    mask |= _store(lo, hi, ixa, xalo, xahi, rtol) << 0
+    mask |= _store(lo, hi, iya, yalo, yahi, rtol) << 1
+    mask |= _store(lo, hi, ita, talo, tahi, rtol) << 2
+    mask |= _store(lo, hi, ixb, xblo, xbhi, rtol) << 3
+    mask |= _store(lo, hi, iyb, yblo, ybhi, rtol) << 4
+    if kind == ODOMETRY:
+        mask |= _store(lo, hi, itb, tblo, tbhi, rtol) << 5
+    mask |= _store(lo, hi, iang, anglo, anghi, rtol) << 6
+    mask |= _store(lo, hi, ilen, lenlo, lenhi, rtol) << 7
+    return mask
+
+
+@jit
+def _store(lo: np.ndarray, hi: np.ndarray, i: int, new_lo: float, new_hi: float, rtol: float) -> int:
+    """Write a narrowed interval back (never widening); 1 when it shrank by more than rtol."""
+    old_lo, old_hi = lo[i], hi[i]
+    new_lo = max(new_lo, old_lo)
+    new_hi = min(new_hi, old_hi)
+    lo[i] = new_lo
+    hi[i] = new_hi
+    return 1 if shrunk(old_lo, old_hi, new_lo, new_hi, rtol) else 0
