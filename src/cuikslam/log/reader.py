@@ -74,7 +74,7 @@ def _numbered_records(lines: Iterable[str]) -> Iterable[tuple[int, str]]:
     for number, raw in enumerate(lines, start=1):
         stripped = raw.strip()
         if stripped and not stripped.startswith("#"):
-            yield number, stripped
+            yield number, raw.rstrip()
 
 
 def _reject_constant(token: str) -> Any:

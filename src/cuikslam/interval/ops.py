@@ -1,0 +1,229 @@
+"""Vectorized interval operations on NumPy arrays.
+
+An interval array is a float64 array whose last axis holds ``(lo, hi)``; leading axes
+broadcast like any NumPy operation, so ``add(a, b)`` adds many intervals at once in
+compiled code. An interval is empty when ``lo > hi``. Every result is rounded outward.
+
+Examples
+--------
+>>> import numpy as np
+>>> from cuikslam import interval as ia
+>>> x = np.array([[1.0, 2.0], [-1.0, 3.0]])
+>>> ia.sqr(x).tolist()  # products move one ulp outward
+[[0.9999999999999999, 4.000000000000001], [0.0, 9.000000000000002]]
+>>> ia.add(x, x).tolist()  # exact sums stay exact
+[[2.0, 4.0], [-2.0, 6.0]]
+>>> bool(ia.is_empty(ia.intersect(np.array([0.0, 1.0]), np.array([2.0, 3.0]))))
+True
+>>> ia.angle_of(np.array([-0.1, 0.1]), np.array([-2.0, -1.0]), np.array([3.0, 3.3]))[2].round(4)
+array([3.0419, 3.2413])
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cuikslam._jit import gufunc
+from cuikslam.interval import _arith, _periodic
+
+__all__ = [
+    "EMPTY",
+    "add",
+    "angle_of",
+    "atan2",
+    "bwd_add",
+    "bwd_cos",
+    "bwd_mul",
+    "bwd_sin",
+    "bwd_sqr",
+    "bwd_sqrt",
+    "bwd_sub",
+    "contains",
+    "cos",
+    "div",
+    "hull",
+    "intersect",
+    "interval",
+    "is_empty",
+    "mul",
+    "neg",
+    "periodic_intersect",
+    "sin",
+    "sqr",
+    "sqrt",
+    "sub",
+    "width",
+]
+
+EMPTY = np.array([np.inf, -np.inf])
+"""The canonical empty interval."""
+
+_F = "float64[:]"
+_UNARY = [f"void({_F}, {_F})"]
+_BINARY = [f"void({_F}, {_F}, {_F})"]
+_BWD_BINARY = [f"void({_F}, {_F}, {_F}, {_F}, {_F})"]
+_BWD_UNARY = [f"void({_F}, {_F}, {_F})"]
+
+
+def interval(lo: np.typing.ArrayLike, hi: np.typing.ArrayLike | None = None) -> np.ndarray:
+    """Stack lower and upper bounds into an interval array (``hi`` defaults to ``lo``: points)."""
+    lo = np.asarray(lo, dtype=np.float64)
+    hi = lo if hi is None else np.asarray(hi, dtype=np.float64)
+    lo, hi = np.broadcast_arrays(lo, hi)
+    return np.stack([lo, hi], axis=-1)
+
+
+def is_empty(x: np.ndarray) -> np.ndarray:
+    """True where the interval is empty."""
+    x = np.asarray(x)
+    return x[..., 0] > x[..., 1]
+
+
+def width(x: np.ndarray) -> np.ndarray:
+    """Width ``hi - lo`` (0 for empty intervals)."""
+    x = np.asarray(x, dtype=np.float64)
+    return np.where(is_empty(x), 0.0, x[..., 1] - x[..., 0])
+
+
+def contains(x: np.ndarray, value: np.typing.ArrayLike) -> np.ndarray:
+    """True where ``value`` lies in the interval."""
+    x = np.asarray(x, dtype=np.float64)
+    value = np.asarray(value, dtype=np.float64)
+    return (x[..., 0] <= value) & (value <= x[..., 1])
+
+
+@gufunc(_BINARY, "(n),(n)->(n)")
+def intersect(a, b, out):  # noqa: D103
+    out[0], out[1] = _arith.meet(a[0], a[1], b[0], b[1])
+
+
+@gufunc(_BINARY, "(n),(n)->(n)")
+def hull(a, b, out):  # noqa: D103
+    out[0], out[1] = _arith.join(a[0], a[1], b[0], b[1])
+
+
+@gufunc(_UNARY, "(n)->(n)")
+def neg(a, out):  # noqa: D103
+    out[0], out[1] = _arith.neg(a[0], a[1])
+
+
+@gufunc(_BINARY, "(n),(n)->(n)")
+def add(a, b, out):  # noqa: D103
+    out[0], out[1] = _arith.add(a[0], a[1], b[0], b[1])
+
+
+@gufunc(_BINARY, "(n),(n)->(n)")
+def sub(a, b, out):  # noqa: D103
+    out[0], out[1] = _arith.sub(a[0], a[1], b[0], b[1])
+
+
+@gufunc(_BINARY, "(n),(n)->(n)")
+def mul(a, b, out):  # noqa: D103
+    out[0], out[1] = _arith.mul(a[0], a[1], b[0], b[1])
+
+
+@gufunc(_BINARY, "(n),(n)->(n)")
+def div(a, b, out):  # noqa: D103
+    out[0], out[1] = _arith.div(a[0], a[1], b[0], b[1])
+
+
+@gufunc(_UNARY, "(n)->(n)")
+def sqr(a, out):  # noqa: D103
+    out[0], out[1] = _arith.sqr(a[0], a[1])
+
+
+@gufunc(_UNARY, "(n)->(n)")
+def sqrt(a, out):  # noqa: D103
+    out[0], out[1] = _arith.sqrt(a[0], a[1])
+
+
+@gufunc(_UNARY, "(n)->(n)")
+def cos(a, out):  # noqa: D103
+    out[0], out[1] = _periodic.cos(a[0], a[1])
+
+
+@gufunc(_UNARY, "(n)->(n)")
+def sin(a, out):  # noqa: D103
+    out[0], out[1] = _periodic.sin(a[0], a[1])
+
+
+@gufunc(_BINARY, "(n),(n)->(n)")
+def atan2(y, x, out):  # noqa: D103
+    out[0], out[1] = _periodic.atan2(y[0], y[1], x[0], x[1])
+
+
+@gufunc(_BINARY, "(n),(n)->(n)")
+def periodic_intersect(x, a, out):  # noqa: D103
+    out[0], out[1] = _periodic.periodic_meet(x[0], x[1], a[0], a[1])
+
+
+@gufunc(_BWD_BINARY, "(n),(n),(n)->(n),(n)")
+def bwd_add(z, x, y, x_out, y_out):  # noqa: D103
+    x_out[0], x_out[1], y_out[0], y_out[1] = _arith.bwd_add(z[0], z[1], x[0], x[1], y[0], y[1])
+
+
+@gufunc(_BWD_BINARY, "(n),(n),(n)->(n),(n)")
+def bwd_sub(z, x, y, x_out, y_out):  # noqa: D103
+    x_out[0], x_out[1], y_out[0], y_out[1] = _arith.bwd_sub(z[0], z[1], x[0], x[1], y[0], y[1])
+
+
+@gufunc(_BWD_BINARY, "(n),(n),(n)->(n),(n)")
+def bwd_mul(z, x, y, x_out, y_out):  # noqa: D103
+    x_out[0], x_out[1], y_out[0], y_out[1] = _arith.bwd_mul(z[0], z[1], x[0], x[1], y[0], y[1])
+
+
+@gufunc(_BWD_UNARY, "(n),(n)->(n)")
+def bwd_sqr(z, x, x_out):  # noqa: D103
+    x_out[0], x_out[1] = _arith.bwd_sqr(z[0], z[1], x[0], x[1])
+
+
+@gufunc(_BWD_UNARY, "(n),(n)->(n)")
+def bwd_sqrt(z, x, x_out):  # noqa: D103
+    x_out[0], x_out[1] = _arith.bwd_sqrt(z[0], z[1], x[0], x[1])
+
+
+@gufunc(_BWD_UNARY, "(n),(n)->(n)")
+def bwd_cos(z, x, x_out):  # noqa: D103
+    x_out[0], x_out[1] = _periodic.bwd_cos(z[0], z[1], x[0], x[1])
+
+
+@gufunc(_BWD_UNARY, "(n),(n)->(n)")
+def bwd_sin(z, x, x_out):  # noqa: D103
+    x_out[0], x_out[1] = _periodic.bwd_sin(z[0], z[1], x[0], x[1])
+
+
+@gufunc([f"void({_F}, {_F}, {_F}, {_F}, {_F}, {_F})"], "(n),(n),(n)->(n),(n),(n)")
+def angle_of(y, x, theta, y_out, x_out, theta_out):  # noqa: D103
+    (x_out[0], x_out[1], y_out[0], y_out[1], theta_out[0], theta_out[1]) = _periodic.arg_contract(
+        x[0], x[1], y[0], y[1], theta[0], theta[1]
+    )
+
+
+_DOCS = {
+    intersect: "Intersection of interval arrays.",
+    hull: "Interval hull (smallest interval containing both).",
+    neg: "Negation.",
+    add: "Sum, rounded outward.",
+    sub: "Difference, rounded outward.",
+    mul: "Product, rounded outward (0 * inf = 0).",
+    div: "Hull of a / b over b != 0 (relational division; unbounded when 0 is inside b).",
+    sqr: "Square, rounded outward.",
+    sqrt: "Square root of the non-negative part, rounded outward.",
+    cos: "Cosine of an unwrapped angle interval, rounded outward.",
+    sin: "Sine of an unwrapped angle interval, rounded outward.",
+    atan2: "Principal angle atan2(y, x) in [-pi, pi] (with its cut); prefer angle_of.",
+    periodic_intersect: "Hull of x ∩ (a + 2 pi Z): angles of x congruent to an angle of a.",
+    bwd_add: "Narrow (x, y) under z = x + y; returns (x', y').",
+    bwd_sub: "Narrow (x, y) under z = x - y; returns (x', y').",
+    bwd_mul: "Narrow (x, y) under z = x * y; returns (x', y').",
+    bwd_sqr: "Narrow x under z = x**2; returns x'.",
+    bwd_sqrt: "Narrow x under z = sqrt(x); returns x'.",
+    bwd_cos: "Narrow the angle x under z = cos(x); returns x'.",
+    bwd_sin: "Narrow the angle x under z = sin(x); returns x'.",
+    angle_of: (
+        "Narrow (y, x, theta) under theta ≡ angle of (x, y) mod 2 pi, theta unwrapped: atan2"
+        " without its cut. Returns (y', x', theta')."
+    ),
+}
+for _func, _doc in _DOCS.items():
+    _func.__doc__ = _doc
