@@ -122,7 +122,7 @@ def simulate_paper(seed: int = 0, unknown: bool = False) -> tuple[Log, GroundTru
                 Observation(
                     pose=pose,
                     landmark_class=truth.landmark_class(lid),
-                    range=noisy_interval(math.hypot(dx, dy), RANGE_BOUND, rng),
+                    range=noisy_interval(math.hypot(dx, dy), RANGE_BOUND, rng, non_negative=True),
                     bearing=noisy_interval(
                         wrap_angle(math.atan2(dy, dx) - xyt[2]), BEARING_BOUND, rng
                     ),
@@ -136,7 +136,9 @@ def simulate_paper(seed: int = 0, unknown: bool = False) -> tuple[Log, GroundTru
                     source=pose,
                     target=POSE_IDS[i + 1],
                     turn=noisy_interval(float(turn), TURN_BOUND, rng),
-                    distance=noisy_interval(math.hypot(dx, dy), DISTANCE_BOUND, rng),
+                    distance=noisy_interval(
+                        math.hypot(dx, dy), DISTANCE_BOUND, rng, non_negative=True
+                    ),
                 )
             )
     return Log(records=records, path=f"<paper seed={seed}>"), truth

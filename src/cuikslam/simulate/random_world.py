@@ -165,7 +165,7 @@ def simulate_world(spec: WorldSpec, seed: int = 0) -> tuple[Log, GroundTruth]:
                 Observation(
                     pose=i,
                     landmark_class=landmark_classes[j],
-                    range=noisy_interval(true_range, range_bound, rng),
+                    range=noisy_interval(true_range, range_bound, rng, non_negative=True),
                     bearing=noisy_interval(true_bearing, bearing_bound, rng),
                     landmark=None if spec.unknown else landmark_ids[j],
                 )
@@ -176,7 +176,7 @@ def simulate_world(spec: WorldSpec, seed: int = 0) -> tuple[Log, GroundTruth]:
                     source=i,
                     target=i + 1,
                     turn=noisy_interval(turns[i], turn_bound, rng),
-                    distance=noisy_interval(distances[i], distance_bound, rng),
+                    distance=noisy_interval(distances[i], distance_bound, rng, non_negative=True),
                 )
             )
     records = _drop_range_or_bearing(spec, records, rng)

@@ -29,9 +29,9 @@ __all__ = [
 ]
 
 
-@dataclass
+@dataclass(eq=False)
 class GroundTruth:
-    """The true poses and landmarks of a simulated run.
+    """The true poses and landmarks of a simulated run (compared by identity: it holds arrays).
 
     Attributes
     ----------
@@ -77,15 +77,20 @@ def wrap_angle(angle: float) -> float:
     return math.pi if wrapped == -math.pi else wrapped
 
 
-def noisy_interval(true_value: float, bound: float, rng: np.random.Generator) -> Bounds:
+def noisy_interval(
+    true_value: float, bound: float, rng: np.random.Generator, *, non_negative: bool = False
+) -> Bounds:
     """Simulate one bounded-error measurement of ``true_value``.
 
     The sensor reads ``true_value + e`` with ``e`` uniform in ``[-bound, bound]``; the log
-    stores ``[reading - bound, reading + bound]``, which contains ``true_value``.  The last
-    ``min``/``max`` only absorbs floating-point rounding of ``reading ± bound``.
+    stores ``[reading - bound, reading + bound]``, which contains ``true_value``.  The
+    ``min``/``max`` only absorb floating-point rounding of ``reading ± bound``.  With
+    ``non_negative`` (ranges, distances: the log format requires ``lo >= 0``) a negative
+    ``lo`` is raised to 0, which still contains the non-negative truth.
     """
     reading = true_value + float(rng.uniform(-bound, bound))
-    return (min(reading - bound, true_value), max(reading + bound, true_value))
+    lo = min(reading - bound, true_value)
+    return (max(lo, 0.0) if non_negative else lo, max(reading + bound, true_value))
 
 
 def truth_to_json(truth: GroundTruth) -> dict[str, Any]:
