@@ -1,0 +1,198 @@
+"""The ``cuikslam`` command: thin argument parsing around library calls.
+
+Exit status: 0 success; 1 when the result itself reports a problem (the log is proven
+inconsistent, or ``--truth`` found a box that misses the truth); 2 for bad input or usage
+(one line naming the file and line, no traceback, no partial output file).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from rich.console import Console
+
+from cuikslam import __version__
+from cuikslam.log.errors import LogFormatError
+
+__all__ = ["main"]
+
+EXIT_OK = 0
+EXIT_RESULT = 1
+EXIT_INPUT = 2
+
+
+class CommandError(Exception):
+    """A user-facing failure: printed as one line, exit status 2."""
+
+
+def _console() -> Console:
+    """stdout console; wide when piped so tables do not wrap."""
+    if sys.stdout.isatty():
+        return Console()
+    return Console(width=220, color_system=None, soft_wrap=False)
+
+
+def _truth_path_for(log_path: Path) -> Path:
+    """Where ``simulate`` writes the ground truth of ``log_path``: ``NAME.truth.json`` beside it."""
+    name = log_path.name
+    stem = name[: -len(".jsonl")] if name.endswith(".jsonl") else log_path.stem
+    return log_path.with_name(f"{stem}.truth.json")
+
+
+# --------------------------------------------------------------------------- commands
+def _cmd_paper(args: argparse.Namespace) -> int:
+    from cuikslam.cli.paper import run_paper
+
+    return run_paper(
+        seed=args.seed, figure=args.figure, json_path=args.json, console=_console()
+    )
+
+
+def _cmd_solve(args: argparse.Namespace) -> int:
+    from cuikslam.cli.solve import run_solve
+
+    return run_solve(
+        log_path=args.log,
+        json_path=args.json,
+        csv_path=args.csv,
+        truth_path=args.truth,
+        quiet=args.quiet,
+        console=_console(),
+    )
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from cuikslam.log.writer import write_log_file
+    from cuikslam.simulate import simulate_paper, simulate_random_world, write_truth_file
+
+    if args.world == "paper":
+        log, truth = simulate_paper(seed=args.seed, unknown=args.unknown)
+    else:
+        log, truth = simulate_random_world(
+            seed=args.seed,
+            n_poses=args.poses,
+            n_landmarks=args.landmarks,
+            classes=tuple(args.classes.split(",")),
+            max_range=args.max_range,
+            fov=args.fov,
+            unknown=args.unknown,
+        )
+    out = Path(args.output)
+    truth_out = _truth_path_for(out)
+    write_log_file(log, out)
+    write_truth_file(truth, truth_out)
+    if not args.quiet:
+        print(
+            f"wrote {out} ({len(log.records)} records: {len(log.odometry)} odometry, "
+            f"{len(log.observations)} observations) and its ground truth {truth_out}",
+            file=sys.stderr,
+        )
+    return EXIT_OK
+
+
+def _cmd_plot(args: argparse.Namespace) -> int:
+    from cuikslam.results.figures import plot_solution, save_figure
+    from cuikslam.results.io import read_result_file
+    from cuikslam.simulate import read_truth_file
+
+    solution = read_result_file(args.result)
+    truth = read_truth_file(args.truth) if args.truth else None
+    if not solution.hypotheses:
+        raise CommandError(f"{args.result}: no hypothesis to plot (the log was refuted)")
+    figure = plot_solution(solution, truth, max_hypotheses=args.max_panels)
+    save_figure(figure, args.output)
+    if not args.quiet:
+        print(f"wrote {args.output}", file=sys.stderr)
+    return EXIT_OK
+
+
+# --------------------------------------------------------------------------- parser
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="cuikslam",
+        description=(
+            "Guaranteed 2-D SLAM with bounded errors and unknown landmark correspondence: "
+            "interval boxes that always contain the truth, hypotheses discarded only by proof."
+        ),
+    )
+    parser.add_argument("--version", action="version", version=f"cuikslam {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser(
+        "paper",
+        help="simulate and solve the seed paper's experiment; compare with its Table 1",
+        description="Simulate the seed paper's experiment (30 m room, octagon loop), solve it, "
+        "print the boxes beside the paper's Table 1, and write a figure.",
+    )
+    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.add_argument(
+        "--figure", default="cuikslam-paper.png", help="figure to write (default %(default)s)"
+    )
+    p.add_argument("--json", help="also write the result JSON here")
+    p.set_defaults(func=_cmd_paper)
+
+    p = sub.add_parser("solve", help="solve a JSON Lines log", description="Solve a log file.")
+    p.add_argument("log", help="the log (JSON Lines, see docs/log-format.md)")
+    p.add_argument("--json", help="write the result JSON here")
+    p.add_argument("--csv", help="write the boxes as CSV here")
+    p.add_argument("--truth", help="ground-truth JSON: report whether every box contains it")
+    p.add_argument("-q", "--quiet", action="store_true", help="print no table")
+    p.set_defaults(func=_cmd_solve)
+
+    p = sub.add_parser(
+        "simulate",
+        help="write a simulated log and its ground truth",
+        description="Write a simulated log and, beside it, NAME.truth.json.",
+    )
+    p.add_argument("world", choices=["paper", "random"], help="which world")
+    p.add_argument("-o", "--output", required=True, help="log file to write (.jsonl)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--unknown", action="store_true", help="drop landmark ids (unknown correspondence)")
+    p.add_argument("--poses", type=int, default=50, help="random world: poses (default 50)")
+    p.add_argument("--landmarks", type=int, default=10, help="random world: landmarks (default 10)")
+    p.add_argument(
+        "--classes", default="door,corridor,post", help="random world: landmark classes, comma-separated"
+    )
+    p.add_argument("--max-range", type=float, default=8.0, help="random world: sensor range [m]")
+    p.add_argument(
+        "--fov", type=float, default=6.283185307179586, help="random world: field of view [rad]"
+    )
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser("plot", help="draw a result JSON", description="Draw the boxes of a result.")
+    p.add_argument("result", help="result JSON written by `cuikslam solve --json`")
+    p.add_argument("-o", "--output", required=True, help="figure file (.png, .pdf, .svg)")
+    p.add_argument("--truth", help="ground-truth JSON to draw as points")
+    p.add_argument("--max-panels", type=int, default=12, help="hypotheses drawn at most")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=_cmd_plot)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``cuikslam`` command."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except LogFormatError as err:
+        print(f"cuikslam: error: {err}", file=sys.stderr)
+        return EXIT_INPUT
+    except CommandError as err:
+        print(f"cuikslam: error: {err}", file=sys.stderr)
+        return EXIT_INPUT
+    except OSError as err:
+        where = f"{err.filename}: " if err.filename else ""
+        print(f"cuikslam: error: {where}{err.strerror or err}", file=sys.stderr)
+        return EXIT_INPUT
+    except KeyboardInterrupt:
+        print("cuikslam: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

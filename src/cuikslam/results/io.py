@@ -1,0 +1,157 @@
+"""Result files: the JSON contract read by other tools, and a flat CSV.
+
+JSON layout (stable keys)::
+
+    {"complete": true,
+     "hypotheses": [{"assignment": ["L0", ...],
+                     "poses": {"0": {"x": [lo, hi], "y": [lo, hi], "theta": [lo, hi]}},
+                     "landmarks": {"L0": {"class": "door", "x": [lo, hi], "y": [lo, hi]}},
+                     "status": "not refuted", "rank": 1, "n_landmarks": 4}],
+     "statistics": {...}, "timings": {...}, "log": "...", "consistency": "..."}
+
+Bounds are written with full precision (``repr`` of the floats), so reading a result
+back gives the same boxes. Files are written atomically.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+import os
+from typing import Any
+
+import numpy as np
+
+from cuikslam import __version__
+from cuikslam._atomic import atomic_write_text
+from cuikslam.log.errors import LogFormatError
+from cuikslam.results.solution import Hypothesis, Solution
+
+__all__ = ["read_result_file", "solution_to_json", "write_result_csv", "write_result_file"]
+
+
+def _bounds(pair: np.ndarray) -> list[float | None]:
+    """JSON has no infinity: unbounded sides are written as null."""
+    return [None if math.isinf(v) else float(v) for v in pair]
+
+
+def _hypothesis_to_json(h: Hypothesis, rank: int) -> dict[str, Any]:
+    doc: dict[str, Any] = {
+        "assignment": list(h.assignment),
+        "poses": {
+            str(p): {"x": _bounds(b[0]), "y": _bounds(b[1]), "theta": _bounds(b[2])}
+            for p, b in zip(h.pose_ids, h.poses, strict=True)
+        },
+        "landmarks": {
+            m: {"class": c, "x": _bounds(b[0]), "y": _bounds(b[1])}
+            for m, c, b in zip(h.landmark_ids, h.landmark_classes, h.landmarks, strict=True)
+        },
+        "status": h.status,
+        "rank": rank,
+        "n_landmarks": h.n_landmarks,
+    }
+    if h.witness is not None:
+        doc["witness"] = {k: np.asarray(v).tolist() for k, v in h.witness.items()}
+    return doc
+
+
+def solution_to_json(solution: Solution) -> dict[str, Any]:
+    """The result document of ``solution`` as plain JSON-ready Python objects."""
+    return {
+        "complete": solution.complete,
+        "refuted": solution.refuted,
+        "hypotheses": [_hypothesis_to_json(h, i + 1) for i, h in enumerate(solution.hypotheses)],
+        "statistics": dict(solution.statistics),
+        "timings": dict(solution.timings),
+        "messages": list(solution.messages),
+        "log": solution.log_path,
+        "consistency": solution.consistency,
+        "cuikslam_version": __version__,
+    }
+
+
+def write_result_file(solution: Solution, path: str | os.PathLike[str]) -> None:
+    """Write the JSON result of ``solution`` to ``path`` (atomically)."""
+    atomic_write_text(path, json.dumps(solution_to_json(solution), indent=1) + "\n")
+
+
+def _read_bounds(value: Any, where: str) -> tuple[float, float]:
+    if not (isinstance(value, list) and len(value) == 2):
+        raise ValueError(f"{where} must be [lo, hi]")
+    lo = -math.inf if value[0] is None else float(value[0])
+    hi = math.inf if value[1] is None else float(value[1])
+    return lo, hi
+
+
+def _hypothesis_from_json(doc: dict[str, Any], where: str) -> Hypothesis:
+    poses = doc["poses"]
+    pose_ids = [int(p) for p in poses]
+    pose_boxes = np.array(
+        [[_read_bounds(poses[p][k], f"{where} pose {p} {k}") for k in ("x", "y", "theta")]
+         for p in poses],
+        dtype=np.float64,
+    ).reshape(len(pose_ids), 3, 2)  # fmt: skip
+    marks = doc.get("landmarks", {})
+    landmark_boxes = np.array(
+        [[_read_bounds(marks[m][k], f"{where} landmark {m} {k}") for k in ("x", "y")]
+         for m in marks],
+        dtype=np.float64,
+    ).reshape(len(marks), 2, 2)  # fmt: skip
+    witness = doc.get("witness")
+    return Hypothesis(
+        assignment=[str(a) for a in doc.get("assignment", [])],
+        pose_ids=pose_ids,
+        poses=pose_boxes,
+        landmark_ids=list(marks),
+        landmark_classes=[str(marks[m].get("class", "")) for m in marks],
+        landmarks=landmark_boxes,
+        status=str(doc.get("status", "")),
+        witness=None if witness is None else {k: np.asarray(v) for k, v in witness.items()},
+    )
+
+
+def read_result_file(path: str | os.PathLike[str]) -> Solution:
+    """Read a result JSON written by :func:`write_result_file` (raises LogFormatError if malformed)."""
+    name = os.fspath(path)
+    try:
+        with open(name, encoding="utf-8") as handle:
+            doc = json.load(handle)
+    except OSError as err:
+        raise LogFormatError(name, None, f"cannot read result file: {err.strerror}") from None
+    except json.JSONDecodeError as err:
+        raise LogFormatError(name, err.lineno, f"malformed JSON: {err.msg}") from None
+    try:
+        hypotheses = [
+            _hypothesis_from_json(h, f"hypothesis {i + 1}")
+            for i, h in enumerate(doc["hypotheses"])
+        ]
+        return Solution(
+            hypotheses=hypotheses,
+            complete=bool(doc.get("complete", True)),
+            statistics=dict(doc.get("statistics", {})),
+            timings=dict(doc.get("timings", {})),
+            log_path=str(doc.get("log", "")),
+            consistency=str(doc.get("consistency", "")),
+            messages=list(doc.get("messages", [])),
+        )
+    except (KeyError, TypeError, ValueError, AttributeError) as err:
+        problem = f"missing key {err}" if isinstance(err, KeyError) else str(err)
+        raise LogFormatError(name, None, f"not a cuikslam result file: {problem}") from None
+
+
+def write_result_csv(solution: Solution, path: str | os.PathLike[str]) -> None:
+    """One row per box: hypothesis rank, kind (pose/landmark), id, then x, y, theta bounds."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(
+        ["hypothesis", "kind", "id", "class", "x_lo", "x_hi", "y_lo", "y_hi", "theta_lo",
+         "theta_hi"]
+    )  # fmt: skip
+    for rank, h in enumerate(solution.hypotheses, start=1):
+        for p, b in zip(h.pose_ids, h.poses, strict=True):
+            writer.writerow([rank, "pose", p, "", *map(repr, b.ravel().tolist())])
+        for m, c, b in zip(h.landmark_ids, h.landmark_classes, h.landmarks, strict=True):
+            writer.writerow([rank, "landmark", m, c, *map(repr, b.ravel().tolist()), "", ""])
+    atomic_write_text(path, buffer.getvalue())

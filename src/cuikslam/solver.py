@@ -1,0 +1,79 @@
+"""Solve a log: build its kinematic graph(s), narrow them, return the surviving hypotheses.
+
+Known correspondence (every observation names its landmark) gives one graph; otherwise
+the hypothesis search of :mod:`cuikslam.hypotheses` branches over correspondences.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from cuikslam.graph.kinematic_graph import KinematicGraph
+from cuikslam.log.records import Log
+from cuikslam.narrowing.propagation import DEFAULT_RTOL, propagate
+from cuikslam.results.solution import Hypothesis, Solution
+
+__all__ = ["hypothesis_from_graph", "solve"]
+
+ProgressCallback = Callable[[int, int], None]
+"""Called with (done, total) as a long solve advances."""
+
+
+def hypothesis_from_graph(
+    graph: KinematicGraph, lo: np.ndarray, hi: np.ndarray, assignment: list[str]
+) -> Hypothesis:
+    """Package a graph's narrowed bounds as a :class:`Hypothesis`."""
+    return Hypothesis(
+        assignment=list(assignment),
+        pose_ids=list(graph.pose_ids),
+        poses=graph.pose_boxes(lo, hi),
+        landmark_ids=list(graph.landmark_ids),
+        landmark_classes=list(graph.landmark_classes),
+        landmarks=graph.landmark_boxes(lo, hi),
+    )
+
+
+def solve(
+    log: Log,
+    *,
+    rtol: float = DEFAULT_RTOL,
+    progress: ProgressCallback | None = None,
+) -> Solution:
+    """Solve ``log`` and return every hypothesis that narrowing could not refute.
+
+    With known correspondence there is one hypothesis, or none when the log is proven
+    inconsistent (then ``Solution.refuted`` is True).
+    """
+    start = time.perf_counter()
+    assignment = [str(o.landmark) for o in log.observations]
+    graph = KinematicGraph.from_log(log)
+    result = propagate(graph, rtol=rtol)
+    if progress is not None:
+        progress(1, 1)
+    elapsed = time.perf_counter() - start
+    statistics = {
+        "poses": len(graph.pose_ids),
+        "landmarks": len(graph.landmark_ids),
+        "factors": graph.n_factors,
+        "operator_applications": result.applications,
+    }
+    if result.is_empty:
+        return Solution(
+            hypotheses=[],
+            statistics=statistics,
+            timings={"solve_s": elapsed},
+            log_path=log.path,
+            consistency="hull",
+            messages=["the log is inconsistent: its constraints contract to empty (a proof)"],
+        )
+    hypothesis = hypothesis_from_graph(graph, result.lo, result.hi, assignment)
+    return Solution(
+        hypotheses=[hypothesis],
+        statistics=statistics,
+        timings={"solve_s": elapsed},
+        log_path=log.path,
+        consistency="hull",
+    )
