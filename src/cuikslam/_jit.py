@@ -29,5 +29,5 @@ def jit(func: Callable) -> Callable:
 
 
 def gufunc(signatures: list[str], layout: str) -> Callable[[Callable], Callable]:
-    """Compile a NumPy generalized ufunc (broadcasts over leading axes) with the project's options."""
+    """Compile a NumPy generalized ufunc (broadcasting over leading axes) with our options."""
     return numba.guvectorize(signatures, layout, nopython=True, cache=True, fastmath=False)

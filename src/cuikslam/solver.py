@@ -12,6 +12,7 @@ from collections.abc import Callable
 import numpy as np
 
 from cuikslam.graph.kinematic_graph import KinematicGraph
+from cuikslam.hypotheses.search import DEFAULT_MAX_HYPOTHESES, solve_unknown
 from cuikslam.log.records import Log
 from cuikslam.narrowing.propagation import DEFAULT_RTOL, propagate
 from cuikslam.results.solution import Hypothesis, Solution
@@ -39,14 +40,18 @@ def hypothesis_from_graph(
 def solve(
     log: Log,
     *,
+    max_hypotheses: int = DEFAULT_MAX_HYPOTHESES,
     rtol: float = DEFAULT_RTOL,
     progress: ProgressCallback | None = None,
 ) -> Solution:
     """Solve ``log`` and return every hypothesis that narrowing could not refute.
 
     With known correspondence there is one hypothesis, or none when the log is proven
-    inconsistent (then ``Solution.refuted`` is True).
+    inconsistent (then ``Solution.refuted`` is True). When some observation names no
+    landmark, the correspondence search of :func:`cuikslam.hypotheses.solve_unknown` runs.
     """
+    if log.has_unknown_correspondence:
+        return solve_unknown(log, max_hypotheses=max_hypotheses, rtol=rtol, progress=progress)
     start = time.perf_counter()
     assignment = [str(o.landmark) for o in log.observations]
     graph = KinematicGraph.from_log(log)

@@ -8,6 +8,7 @@ inconsistent, or ``--truth`` found a box that misses the truth); 2 for bad input
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -15,6 +16,12 @@ from pathlib import Path
 from rich.console import Console
 
 from cuikslam import __version__
+from cuikslam.cli._common import (
+    CommandError,
+    check_figure_path,
+    check_output_path,
+    write_output,
+)
 from cuikslam.log.errors import LogFormatError
 
 __all__ = ["main"]
@@ -22,10 +29,6 @@ __all__ = ["main"]
 EXIT_OK = 0
 EXIT_RESULT = 1
 EXIT_INPUT = 2
-
-
-class CommandError(Exception):
-    """A user-facing failure: printed as one line, exit status 2."""
 
 
 def _console() -> Console:
@@ -44,11 +47,14 @@ def _truth_path_for(log_path: Path) -> Path:
 
 # --------------------------------------------------------------------------- commands
 def _cmd_paper(args: argparse.Namespace) -> int:
+    # Output paths are checked before the (slow) solver import; run_paper checks them too.
+    if args.json:
+        check_output_path(args.json)
+    if args.figure:
+        check_figure_path(args.figure)
     from cuikslam.cli.paper import run_paper
 
-    return run_paper(
-        seed=args.seed, figure=args.figure, json_path=args.json, console=_console()
-    )
+    return run_paper(seed=args.seed, figure=args.figure, json_path=args.json, console=_console())
 
 
 def _cmd_solve(args: argparse.Namespace) -> int:
@@ -68,22 +74,34 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from cuikslam.log.writer import write_log_file
     from cuikslam.simulate import simulate_paper, simulate_random_world, write_truth_file
 
-    if args.world == "paper":
-        log, truth = simulate_paper(seed=args.seed, unknown=args.unknown)
-    else:
-        log, truth = simulate_random_world(
-            seed=args.seed,
-            n_poses=args.poses,
-            n_landmarks=args.landmarks,
-            classes=tuple(args.classes.split(",")),
-            max_range=args.max_range,
-            fov=args.fov,
-            unknown=args.unknown,
-        )
     out = Path(args.output)
     truth_out = _truth_path_for(out)
-    write_log_file(log, out)
-    write_truth_file(truth, truth_out)
+    check_output_path(out)
+    check_output_path(truth_out)
+    classes = tuple(c.strip() for c in args.classes.split(","))
+    if not all(classes):
+        raise CommandError(f"--classes {args.classes!r}: class names must be non-empty")
+    for option, value in (("--max-range", args.max_range), ("--fov", args.fov)):
+        if not math.isfinite(value):
+            raise CommandError(f"{option} {value}: must be a finite number")
+    try:
+        if args.world == "paper":
+            log, truth = simulate_paper(seed=args.seed, unknown=args.unknown)
+        else:
+            log, truth = simulate_random_world(
+                seed=args.seed,
+                n_poses=args.poses,
+                n_landmarks=args.landmarks,
+                classes=classes,
+                max_range=args.max_range,
+                fov=args.fov,
+                unknown=args.unknown,
+            )
+    except ValueError as err:  # an impossible world (WorldSpec checks its parameters)
+        problem = str(err).removeprefix("WorldSpec: ")
+        raise CommandError(f"simulate {args.world}: {problem}") from None
+    write_output(out, lambda: write_log_file(log, out))
+    write_output(truth_out, lambda: write_truth_file(truth, truth_out))
     if not args.quiet:
         print(
             f"wrote {out} ({len(log.records)} records: {len(log.odometry)} odometry, "
@@ -94,16 +112,20 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
 
 
 def _cmd_plot(args: argparse.Namespace) -> int:
-    from cuikslam.results.figures import plot_solution, save_figure
     from cuikslam.results.io import read_result_file
-    from cuikslam.simulate import read_truth_file
+    from cuikslam.simulate.truth import read_truth_file
 
+    # Inputs and the output folder first: a bad file fails before matplotlib is imported.
+    check_figure_path(args.output)
     solution = read_result_file(args.result)
     truth = read_truth_file(args.truth) if args.truth else None
     if not solution.hypotheses:
         raise CommandError(f"{args.result}: no hypothesis to plot (the log was refuted)")
+
+    from cuikslam.results.figures import plot_solution, save_figure
+
     figure = plot_solution(solution, truth, max_hypotheses=args.max_panels)
-    save_figure(figure, args.output)
+    write_output(args.output, lambda: save_figure(figure, args.output))
     if not args.quiet:
         print(f"wrote {args.output}", file=sys.stderr)
     return EXIT_OK
@@ -150,11 +172,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("world", choices=["paper", "random"], help="which world")
     p.add_argument("-o", "--output", required=True, help="log file to write (.jsonl)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    p.add_argument("--unknown", action="store_true", help="drop landmark ids (unknown correspondence)")
+    p.add_argument(
+        "--unknown", action="store_true", help="drop landmark ids (unknown correspondence)"
+    )
     p.add_argument("--poses", type=int, default=50, help="random world: poses (default 50)")
     p.add_argument("--landmarks", type=int, default=10, help="random world: landmarks (default 10)")
     p.add_argument(
-        "--classes", default="door,corridor,post", help="random world: landmark classes, comma-separated"
+        "--classes",
+        default="door,corridor,post",
+        help="random world: landmark classes, comma-separated",
     )
     p.add_argument("--max-range", type=float, default=8.0, help="random world: sensor range [m]")
     p.add_argument(

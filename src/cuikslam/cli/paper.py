@@ -6,6 +6,7 @@ import sys
 
 from rich.console import Console
 
+from cuikslam.cli._common import check_figure_path, check_output_path, write_output
 from cuikslam.results.io import write_result_file
 from cuikslam.results.table import comparison_table, hypothesis_rows, hypothesis_table
 from cuikslam.simulate.paper import paper_table1, simulate_paper
@@ -17,6 +18,10 @@ __all__ = ["run_paper"]
 def run_paper(*, seed: int, figure: str | None, json_path: str | None, console: Console) -> int:
     from cuikslam.cli.solve import report_truth
 
+    if json_path:
+        check_output_path(json_path)
+    if figure:
+        check_figure_path(figure)
     log, truth = simulate_paper(seed=seed)
     solution = solve(log)
     if solution.refuted:  # cannot happen with a correct solver: the simulated log is consistent
@@ -28,7 +33,9 @@ def run_paper(*, seed: int, figure: str | None, json_path: str | None, console: 
         f"{len(log.observations)} observations, known correspondence; "
         f"solved in {solution.timings['solve_s'] * 1e3:.1f} ms."
     )
-    console.print(hypothesis_table(best, "cuikslam, known correspondence (the seed's Table 1 layout)"))
+    console.print(
+        hypothesis_table(best, "cuikslam, known correspondence (the seed's Table 1 layout)")
+    )
     ours = hypothesis_rows(best)
     ours = [r for r in ours if r[0].startswith("r ")] + sorted(
         (r for r in ours if r[0].startswith("l ")), key=lambda r: r[0]
@@ -37,15 +44,17 @@ def run_paper(*, seed: int, figure: str | None, json_path: str | None, console: 
         comparison_table(
             ours,
             paper_table1(),
-            "cuikslam beside the seed paper's Table 1 (the paper's θ is measured from +y; widths compare)",
+            "cuikslam beside the seed paper's Table 1 "
+            "(the paper's θ is measured from +y; widths compare)",
         )
     )
     ok = report_truth(solution, truth, console)
     if json_path:
-        write_result_file(solution, json_path)
+        write_output(json_path, lambda: write_result_file(solution, json_path))
     if figure:
         from cuikslam.results.figures import plot_solution, save_figure
 
-        save_figure(plot_solution(solution, truth), figure)
+        drawing = plot_solution(solution, truth)
+        write_output(figure, lambda: save_figure(drawing, figure))
         print(f"wrote {figure}", file=sys.stderr)
     return 0 if ok else 1

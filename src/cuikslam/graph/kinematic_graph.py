@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from cuikslam.graph.encoding import N_SLOTS, OBSERVATION, ODOMETRY, link_factor
 from cuikslam.interval._rounding import PI_HI
 from cuikslam.log.records import (
     Bounds,
@@ -27,7 +28,6 @@ from cuikslam.log.records import (
     Odometry,
     PosePrior,
 )
-from cuikslam.narrowing._factors import N_SLOTS, OBSERVATION, ODOMETRY
 
 __all__ = ["ANY_ANGLE", "ANY_LENGTH", "KinematicGraph"]
 
@@ -89,7 +89,9 @@ class KinematicGraph:
         for i, b in enumerate((x, y, theta)):
             self._narrow_initial(v + i, b)
 
-    def add_landmark_prior(self, landmark: str, x: Bounds, y: Bounds, landmark_class: str = "") -> None:
+    def add_landmark_prior(
+        self, landmark: str, x: Bounds, y: Bounds, landmark_class: str = ""
+    ) -> None:
         """A box known to contain the landmark."""
         v = self.add_landmark(landmark, landmark_class)
         self._narrow_initial(v, x)
@@ -98,7 +100,7 @@ class KinematicGraph:
     def add_odometry(
         self, source: int, target: int, turn: Bounds, distance: Bounds, line: int = 0
     ) -> int:
-        """Turn by ``turn`` then drive ``distance`` from ``source`` to ``target``; returns the factor index."""
+        """Turn by ``turn``, then drive ``distance``, from ``source`` to ``target``."""
         a = self.add_pose(source)
         b = self.add_pose(target)
         m = self._new_vars([turn, (max(0.0, distance[0]), distance[1])])
@@ -110,12 +112,12 @@ class KinematicGraph:
         self,
         pose: int,
         landmark: str,
-        range: Bounds | None = None,  # noqa: A002 - the SLAM word
+        range: Bounds | None = None,
         bearing: Bounds | None = None,
         landmark_class: str = "",
         line: int = 0,
     ) -> int:
-        """Landmark ``landmark`` seen from ``pose`` at ``range`` and ``bearing`` (either may be None)."""
+        """``landmark`` seen from ``pose`` at ``range`` and ``bearing`` (either may be None)."""
         a = self.add_pose(pose)
         b = self.add_landmark(landmark, landmark_class)
         bearing_b = ANY_ANGLE if bearing is None else bearing
@@ -179,21 +181,19 @@ class KinematicGraph:
             return np.zeros((0, 1 + N_SLOTS), dtype=np.int64)
         return np.array(self._factors, dtype=np.int64)
 
-    def adjacency(self) -> tuple[np.ndarray, np.ndarray]:
-        """Factors of each variable, CSR layout ``(ptr, factors)``."""
+    def adjacency(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Factors of each variable as linked lists ``(head, entry_factor, entry_next)``.
+
+        See :mod:`cuikslam.graph.encoding`.
+        """
         table = self.factor_table()
-        counts = np.zeros(self.n_variables + 1, dtype=np.int64)
-        pairs: list[tuple[int, int]] = []
-        for f, row in enumerate(table):
-            for v in row[1:]:
-                if v >= 0:
-                    pairs.append((int(v), f))
-        pairs.sort()
-        for v, _ in pairs:
-            counts[v + 1] += 1
-        ptr = np.cumsum(counts)
-        factors = np.array([f for _, f in pairs], dtype=np.int64)
-        return ptr, factors
+        head = np.full(self.n_variables, -1, dtype=np.int64)
+        entry_factor = np.empty(N_SLOTS * len(table), dtype=np.int64)
+        entry_next = np.empty(N_SLOTS * len(table), dtype=np.int64)
+        n = 0
+        for f in range(len(table)):
+            n = link_factor(table[f], f, head, entry_factor, entry_next, n)
+        return head, entry_factor[:n], entry_next[:n]
 
     def pose_index(self, pose: int) -> int:
         """Index of the x variable of ``pose`` (y and theta follow)."""

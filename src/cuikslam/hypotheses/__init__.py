@@ -1,1 +1,5 @@
-"""hypotheses."""
+"""Unknown correspondence: a collection of kinematic graphs, one per correspondence hypothesis."""
+
+from cuikslam.hypotheses.search import DEFAULT_MAX_HYPOTHESES, SearchStatistics, solve_unknown
+
+__all__ = ["DEFAULT_MAX_HYPOTHESES", "SearchStatistics", "solve_unknown"]

@@ -30,7 +30,7 @@ EMPTY = (INF, -INF)
 
 @jit
 def is_empty(lo: float, hi: float) -> bool:
-    """True for an empty interval (``lo > hi``). NaN bounds are *not* empty: a NaN must never prove anything."""
+    """True for an empty interval (``lo > hi``); NaN is *not* empty: it must prove nothing."""
     return lo > hi
 
 
@@ -92,7 +92,7 @@ def mul(alo: float, ahi: float, blo: float, bhi: float) -> tuple[float, float]:
 
 @jit
 def div(alo: float, ahi: float, blo: float, bhi: float) -> tuple[float, float]:
-    """Hull of ``{a / b : a in A, b in B, b != 0}`` (relational division, used by backward ``mul``)."""
+    """Hull of ``{a / b : a in A, b in B, b != 0}`` (relational division, for backward ``mul``)."""
     if alo > ahi or blo > bhi:
         return EMPTY
     if blo > 0.0 or bhi < 0.0:
@@ -127,9 +127,9 @@ def sqr(alo: float, ahi: float) -> tuple[float, float]:
     if alo > ahi:
         return EMPTY
     if alo >= 0.0:
-        return mul_down(alo, alo), mul_up(ahi, ahi)
+        return max(0.0, mul_down(alo, alo)), mul_up(ahi, ahi)
     if ahi <= 0.0:
-        return mul_down(ahi, ahi), mul_up(alo, alo)
+        return max(0.0, mul_down(ahi, ahi)), mul_up(alo, alo)
     return 0.0, max(mul_up(alo, alo), mul_up(ahi, ahi))
 
 

@@ -64,6 +64,9 @@ def periodic_meet_k(
         return alo, ahi, 0.0, 0.0
     if not (math.isfinite(xlo) and math.isfinite(xhi)) or max(abs(xlo), abs(xhi)) > _PHASE_LIMIT:
         return xlo, xhi, -INF, INF
+    if max(abs(alo), abs(ahi)) > _PHASE_LIMIT:
+        # the copies' shifts 2 pi k would be too coarse (k steps by more than 1)
+        return xlo, xhi, -INF, INF
     k_start = math.floor((xlo - ahi) / TWO_PI_HI) - 1.0
     k_stop = math.ceil((xhi - alo) / TWO_PI_LO) + 1.0
     k_first = k_start
@@ -146,11 +149,7 @@ def sin(xlo: float, xhi: float) -> tuple[float, float]:
         if _may_contain(xlo, xhi, -HALF_PI_HI, -HALF_PI_LO)
         else min(_sin_down(xlo), _sin_down(xhi))
     )
-    hi = (
-        1.0
-        if _may_contain(xlo, xhi, HALF_PI_LO, HALF_PI_HI)
-        else max(_sin_up(xlo), _sin_up(xhi))
-    )
+    hi = 1.0 if _may_contain(xlo, xhi, HALF_PI_LO, HALF_PI_HI) else max(_sin_up(xlo), _sin_up(xhi))
     return lo, hi
 
 
@@ -255,13 +254,13 @@ def arg_contract(
 
     This is atan2 without its cut: phi may be any unwrapped interval. The box is split
     into its parts in the four closed quadrants; each part is mirrored into the first
-    quadrant, where the angle is monotone in each coordinate. A box that contains the
-    origin is left as it is (the angle of the zero vector is undefined).
+    quadrant, where the angle is monotone in each coordinate. When the box contains the
+    origin, whose angle is undefined, the origin stays and phi is left as it is; the parts
+    (cones from the origin) are still narrowed.
     """
     if xlo > xhi or ylo > yhi or plo > phi:
         return EMPTY[0], EMPTY[1], EMPTY[0], EMPTY[1], EMPTY[0], EMPTY[1]
-    if xlo <= 0.0 <= xhi and ylo <= 0.0 <= yhi:
-        return xlo, xhi, ylo, yhi, plo, phi
+    origin = xlo <= 0.0 <= xhi and ylo <= 0.0 <= yhi
     oxlo, oxhi, oylo, oyhi, oplo, ophi = (
         EMPTY[0], EMPTY[1], EMPTY[0], EMPTY[1], EMPTY[0], EMPTY[1],
     )  # fmt: skip
@@ -320,6 +319,10 @@ def arg_contract(
         oxlo, oxhi = join(oxlo, oxhi, pxlo, pxhi)
         oylo, oyhi = join(oylo, oyhi, pylo, pyhi)
         oplo, ophi = join(oplo, ophi, qlo, qhi)
+    if origin:
+        oxlo, oxhi = join(oxlo, oxhi, 0.0, 0.0)
+        oylo, oyhi = join(oylo, oyhi, 0.0, 0.0)
+        return oxlo, oxhi, oylo, oyhi, plo, phi
     if oxlo > oxhi:
         return EMPTY[0], EMPTY[1], EMPTY[0], EMPTY[1], EMPTY[0], EMPTY[1]
     return oxlo, oxhi, oylo, oyhi, oplo, ophi

@@ -54,7 +54,8 @@ def add_down(a: float, b: float) -> float:
         if s > 0 and math.isfinite(a) and math.isfinite(b):
             return MAX
         return s
-    if _two_sum_error(a, b, s) < 0.0:
+    # a NaN error (TwoSum's intermediate overflowed near MAX) is treated as inexact
+    if not _two_sum_error(a, b, s) >= 0.0:
         return down(s)
     return s
 
@@ -67,7 +68,7 @@ def add_up(a: float, b: float) -> float:
         if s < 0 and math.isfinite(a) and math.isfinite(b):
             return -MAX
         return s
-    if _two_sum_error(a, b, s) > 0.0:
+    if not _two_sum_error(a, b, s) <= 0.0:
         return up(s)
     return s
 
@@ -102,17 +103,25 @@ def mul_up(a: float, b: float) -> float:
 
 @jit
 def div_down(a: float, b: float) -> float:
-    """A lower bound of the exact ``a / b`` for ``b != 0``; 0 / b = 0."""
+    """A lower bound of the exact ``a / b`` for ``b != 0``; 0 / b = 0.
+
+    inf / inf (a corner of unbounded intervals) is the limit of quotients that take every
+    value of its sign: 0 or -inf, never NaN (min and max would drop a NaN silently).
+    """
     if a == 0.0:
         return 0.0
+    if math.isinf(a) and math.isinf(b):
+        return 0.0 if (a > 0.0) == (b > 0.0) else -INF
     return down(a / b)
 
 
 @jit
 def div_up(a: float, b: float) -> float:
-    """An upper bound of the exact ``a / b`` for ``b != 0``; 0 / b = 0."""
+    """An upper bound of the exact ``a / b`` for ``b != 0``; 0 / b = 0; inf / inf: inf or 0."""
     if a == 0.0:
         return 0.0
+    if math.isinf(a) and math.isinf(b):
+        return INF if (a > 0.0) == (b > 0.0) else 0.0
     return up(a / b)
 
 

@@ -93,107 +93,107 @@ def contains(x: np.ndarray, value: np.typing.ArrayLike) -> np.ndarray:
 
 
 @gufunc(_BINARY, "(n),(n)->(n)")
-def intersect(a, b, out):  # noqa: D103
+def intersect(a, b, out):
     out[0], out[1] = _arith.meet(a[0], a[1], b[0], b[1])
 
 
 @gufunc(_BINARY, "(n),(n)->(n)")
-def hull(a, b, out):  # noqa: D103
+def hull(a, b, out):
     out[0], out[1] = _arith.join(a[0], a[1], b[0], b[1])
 
 
 @gufunc(_UNARY, "(n)->(n)")
-def neg(a, out):  # noqa: D103
+def neg(a, out):
     out[0], out[1] = _arith.neg(a[0], a[1])
 
 
 @gufunc(_BINARY, "(n),(n)->(n)")
-def add(a, b, out):  # noqa: D103
+def add(a, b, out):
     out[0], out[1] = _arith.add(a[0], a[1], b[0], b[1])
 
 
 @gufunc(_BINARY, "(n),(n)->(n)")
-def sub(a, b, out):  # noqa: D103
+def sub(a, b, out):
     out[0], out[1] = _arith.sub(a[0], a[1], b[0], b[1])
 
 
 @gufunc(_BINARY, "(n),(n)->(n)")
-def mul(a, b, out):  # noqa: D103
+def mul(a, b, out):
     out[0], out[1] = _arith.mul(a[0], a[1], b[0], b[1])
 
 
 @gufunc(_BINARY, "(n),(n)->(n)")
-def div(a, b, out):  # noqa: D103
+def div(a, b, out):
     out[0], out[1] = _arith.div(a[0], a[1], b[0], b[1])
 
 
 @gufunc(_UNARY, "(n)->(n)")
-def sqr(a, out):  # noqa: D103
+def sqr(a, out):
     out[0], out[1] = _arith.sqr(a[0], a[1])
 
 
 @gufunc(_UNARY, "(n)->(n)")
-def sqrt(a, out):  # noqa: D103
+def sqrt(a, out):
     out[0], out[1] = _arith.sqrt(a[0], a[1])
 
 
 @gufunc(_UNARY, "(n)->(n)")
-def cos(a, out):  # noqa: D103
+def cos(a, out):
     out[0], out[1] = _periodic.cos(a[0], a[1])
 
 
 @gufunc(_UNARY, "(n)->(n)")
-def sin(a, out):  # noqa: D103
+def sin(a, out):
     out[0], out[1] = _periodic.sin(a[0], a[1])
 
 
 @gufunc(_BINARY, "(n),(n)->(n)")
-def atan2(y, x, out):  # noqa: D103
+def atan2(y, x, out):
     out[0], out[1] = _periodic.atan2(y[0], y[1], x[0], x[1])
 
 
 @gufunc(_BINARY, "(n),(n)->(n)")
-def periodic_intersect(x, a, out):  # noqa: D103
+def periodic_intersect(x, a, out):
     out[0], out[1] = _periodic.periodic_meet(x[0], x[1], a[0], a[1])
 
 
 @gufunc(_BWD_BINARY, "(n),(n),(n)->(n),(n)")
-def bwd_add(z, x, y, x_out, y_out):  # noqa: D103
+def bwd_add(z, x, y, x_out, y_out):
     x_out[0], x_out[1], y_out[0], y_out[1] = _arith.bwd_add(z[0], z[1], x[0], x[1], y[0], y[1])
 
 
 @gufunc(_BWD_BINARY, "(n),(n),(n)->(n),(n)")
-def bwd_sub(z, x, y, x_out, y_out):  # noqa: D103
+def bwd_sub(z, x, y, x_out, y_out):
     x_out[0], x_out[1], y_out[0], y_out[1] = _arith.bwd_sub(z[0], z[1], x[0], x[1], y[0], y[1])
 
 
 @gufunc(_BWD_BINARY, "(n),(n),(n)->(n),(n)")
-def bwd_mul(z, x, y, x_out, y_out):  # noqa: D103
+def bwd_mul(z, x, y, x_out, y_out):
     x_out[0], x_out[1], y_out[0], y_out[1] = _arith.bwd_mul(z[0], z[1], x[0], x[1], y[0], y[1])
 
 
 @gufunc(_BWD_UNARY, "(n),(n)->(n)")
-def bwd_sqr(z, x, x_out):  # noqa: D103
+def bwd_sqr(z, x, x_out):
     x_out[0], x_out[1] = _arith.bwd_sqr(z[0], z[1], x[0], x[1])
 
 
 @gufunc(_BWD_UNARY, "(n),(n)->(n)")
-def bwd_sqrt(z, x, x_out):  # noqa: D103
+def bwd_sqrt(z, x, x_out):
     x_out[0], x_out[1] = _arith.bwd_sqrt(z[0], z[1], x[0], x[1])
 
 
 @gufunc(_BWD_UNARY, "(n),(n)->(n)")
-def bwd_cos(z, x, x_out):  # noqa: D103
+def bwd_cos(z, x, x_out):
     x_out[0], x_out[1] = _periodic.bwd_cos(z[0], z[1], x[0], x[1])
 
 
 @gufunc(_BWD_UNARY, "(n),(n)->(n)")
-def bwd_sin(z, x, x_out):  # noqa: D103
+def bwd_sin(z, x, x_out):
     x_out[0], x_out[1] = _periodic.bwd_sin(z[0], z[1], x[0], x[1])
 
 
 @gufunc([f"void({_F}, {_F}, {_F}, {_F}, {_F}, {_F})"], "(n),(n),(n)->(n),(n),(n)")
-def angle_of(y, x, theta, y_out, x_out, theta_out):  # noqa: D103
+def angle_of(y, x, theta, y_out, x_out, theta_out):
     (x_out[0], x_out[1], y_out[0], y_out[1], theta_out[0], theta_out[1]) = _periodic.arg_contract(
         x[0], x[1], y[0], y[1], theta[0], theta[1]
     )

@@ -10,6 +10,7 @@ from cuikslam.log.records import (
     Odometry,
     PosePrior,
     Record,
+    SensorModel,
 )
 from cuikslam.log.writer import log_to_lines, write_log_file
 
@@ -22,6 +23,7 @@ __all__ = [
     "Odometry",
     "PosePrior",
     "Record",
+    "SensorModel",
     "log_to_lines",
     "parse_log_lines",
     "read_log_file",

@@ -14,7 +14,15 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from cuikslam.log.records import Bounds, LandmarkPrior, Observation, Odometry, PosePrior, Record
+from cuikslam.log.records import (
+    Bounds,
+    LandmarkPrior,
+    Observation,
+    Odometry,
+    PosePrior,
+    Record,
+    SensorModel,
+)
 
 __all__ = ["RECORD_TYPES", "Problem", "record_from_json"]
 
@@ -135,11 +143,33 @@ def _landmark(f: dict[str, Any], line: int) -> LandmarkPrior:
     )
 
 
+def _positive(value: Any, name: str) -> float:
+    if not _is_number(value):
+        raise Problem(f'field "{name}" must be a number, got {_show(value)}')
+    number = _finite(value, name)
+    if number <= 0:
+        raise Problem(f'field "{name}" must be positive, got {_show(value)}')
+    return number
+
+
+def _sensor(f: dict[str, Any], line: int) -> SensorModel:
+    margin = f.get("nearest_margin")
+    return SensorModel(
+        max_range=math.inf
+        if f.get("max_range") is None
+        else _positive(f["max_range"], "max_range"),
+        fov=2 * math.pi if f.get("fov") is None else min(_positive(f["fov"], "fov"), 2 * math.pi),
+        nearest_margin=None if margin is None else _positive(margin, "nearest_margin"),
+        line=line,
+    )
+
+
 RECORD_TYPES: dict[str, _Schema] = {
     "prior": _Schema(("pose", "x", "y", "theta"), (), _prior),
     "odometry": _Schema(("from", "to", "turn", "distance"), (), _odometry),
     "observation": _Schema(("pose", "class"), ("range", "bearing", "landmark"), _observation),
     "landmark": _Schema(("id", "class", "x", "y"), (), _landmark),
+    "sensor": _Schema((), ("max_range", "fov", "nearest_margin"), _sensor),
 }
 
 _TYPE_LIST = ", ".join(f'"{t}"' for t in RECORD_TYPES)

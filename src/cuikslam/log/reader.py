@@ -15,7 +15,15 @@ from typing import Any
 
 from cuikslam.log._fields import Problem, record_from_json
 from cuikslam.log.errors import LogFormatError
-from cuikslam.log.records import LandmarkPrior, Log, Observation, Odometry, PosePrior, Record
+from cuikslam.log.records import (
+    LandmarkPrior,
+    Log,
+    Observation,
+    Odometry,
+    PosePrior,
+    Record,
+    SensorModel,
+)
 
 __all__ = ["parse_log_lines", "read_log_file"]
 
@@ -109,6 +117,7 @@ def _check_order(records: list[Record], path: str) -> None:
     reached: set[int] = set()
     landmark_seen: dict[str, tuple[str, int]] = {}
     scan_seen: dict[tuple[int, str], int] = {}
+    sensor_line: int | None = None
 
     def fail(record: Record, problem: str) -> None:
         raise LogFormatError(path, record.line, problem)
@@ -151,3 +160,7 @@ def _check_order(records: list[Record], path: str) -> None:
                         )
             case LandmarkPrior(landmark=landmark):
                 same_class(record, landmark)
+            case SensorModel():
+                if sensor_line is not None:
+                    fail(record, f"a second sensor record; the first is on line {sensor_line}")
+                sensor_line = record.line

@@ -8,6 +8,7 @@ from the robot's heading.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 __all__ = [
@@ -18,6 +19,7 @@ __all__ = [
     "Odometry",
     "PosePrior",
     "Record",
+    "SensorModel",
 ]
 
 Bounds = tuple[float, float]
@@ -78,7 +80,24 @@ class LandmarkPrior:
     line: int = 0
 
 
-Record = PosePrior | Odometry | Observation | LandmarkPrior
+@dataclass(frozen=True)
+class SensorModel:
+    """What the robot's sensor is sure to see: the source of negative information.
+
+    The robot observes every landmark within ``max_range`` and inside the field of view
+    ``fov`` (centred on its heading) and, when ``nearest_margin`` is set, only those within
+    ``nearest_margin`` of the nearest landmark's distance. A hypothesis that puts a
+    landmark where the robot was sure to see it, at a pose that did not observe it, is
+    impossible. Without a sensor record no such conclusion is drawn.
+    """
+
+    max_range: float = math.inf
+    fov: float = 2 * math.pi
+    nearest_margin: float | None = None
+    line: int = 0
+
+
+Record = PosePrior | Odometry | Observation | LandmarkPrior | SensorModel
 
 
 @dataclass
@@ -103,6 +122,12 @@ class Log:
     @property
     def landmark_priors(self) -> list[LandmarkPrior]:
         return [r for r in self.records if isinstance(r, LandmarkPrior)]
+
+    @property
+    def sensor(self) -> SensorModel | None:
+        """The sensor model, if the log declares one."""
+        found = [r for r in self.records if isinstance(r, SensorModel)]
+        return found[0] if found else None
 
     @property
     def pose_ids(self) -> list[int]:

@@ -7,6 +7,7 @@ identical values; the file is replaced atomically so a crash never leaves half a
 from __future__ import annotations
 
 import json
+import math
 import operator
 import os
 from typing import Any
@@ -21,6 +22,7 @@ from cuikslam.log.records import (
     Odometry,
     PosePrior,
     Record,
+    SensorModel,
 )
 
 __all__ = ["log_to_lines", "write_log_file"]
@@ -99,6 +101,15 @@ def _record_to_json(record: Record) -> dict[str, Any]:
                 "x": _bounds(record.x),
                 "y": _bounds(record.y),
             }
+        case SensorModel():
+            fields = {"type": "sensor"}
+            if math.isfinite(record.max_range):
+                fields["max_range"] = float(record.max_range)
+            if record.fov < 2 * math.pi:
+                fields["fov"] = float(record.fov)
+            if record.nearest_margin is not None:
+                fields["nearest_margin"] = float(record.nearest_margin)
+            return fields
     raise TypeError(f"not a log record: {record!r}")
 
 

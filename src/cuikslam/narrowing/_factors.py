@@ -1,18 +1,7 @@
-"""Compiled narrowing operators of the two factor kinds, over array-encoded graphs.
+"""Compiled narrowing operators of the factor kinds, over array-encoded graphs.
 
-A graph's variables are two float arrays ``lo`` and ``hi`` (one interval per variable:
-pose x, y, theta, landmark x, y, and every measured quantity). A factor is one row of an
-int64 table ``factors[f] = (kind, xa, ya, ta, xb, yb, tb, angle, length)`` naming its
-variables:
-
-- ``ODOMETRY``: pose a -> pose b, tb ≡ ta + turn (mod 2 pi),
-  (xb - xa, yb - ya) = distance (cos tb, sin tb); ``angle`` = turn, ``length`` = distance.
-- ``OBSERVATION``: pose a sees landmark b at (xb, yb) (``tb = -1``),
-  (xb - xa, yb - ya) = range (cos(ta + bearing), sin(ta + bearing)); ``angle`` = bearing,
-  ``length`` = range. Range-only and bearing-only observations are observations whose
-  missing quantity is left free ([-pi, pi] or [0, inf)).
-
-Every quantity of a factor is narrowed, headings and measurements included.
+See :mod:`cuikslam.graph.encoding` for the layout of variables and factor rows. Every
+quantity of a factor is narrowed, headings and measurements included.
 """
 
 from __future__ import annotations
@@ -20,16 +9,23 @@ from __future__ import annotations
 import numpy as np
 
 from cuikslam._jit import jit
+from cuikslam.graph.encoding import (
+    ANGLE,
+    KIND,
+    LENGTH,
+    ODOMETRY,
+    TA,
+    TB,
+    UNSEEN,
+    XA,
+    XB,
+    YA,
+    YB,
+)
 from cuikslam.interval._arith import add, meet, sub
 from cuikslam.interval._periodic import periodic_meet
 from cuikslam.narrowing._polar import polar_contract, shrunk
-
-ODOMETRY = 0
-OBSERVATION = 1
-
-KIND, XA, YA, TA, XB, YB, TB, ANGLE, LENGTH = range(9)
-N_SLOTS = 8
-"""Variable slots of a factor row: columns 1..8."""
+from cuikslam.narrowing._unseen import unseen_contract
 
 EMPTY_FACTOR = -1
 
@@ -72,6 +68,8 @@ def narrow_factor(
     solution in the box (then nothing is written).
     """
     kind = row[KIND]
+    if kind == UNSEEN:
+        return _narrow_unseen(lo, hi, row, rtol)
     ixa, iya, ita, ixb, iyb = row[XA], row[YA], row[TA], row[XB], row[YB]
     itb, iang, ilen = row[TB], row[ANGLE], row[LENGTH]
     xalo, xahi, yalo, yahi, talo, tahi = lo[ixa], hi[ixa], lo[iya], hi[iya], lo[ita], hi[ita]
@@ -136,7 +134,33 @@ def narrow_factor(
 
 
 @jit
-def _store(lo: np.ndarray, hi: np.ndarray, i: int, new_lo: float, new_hi: float, rtol: float) -> int:
+def _narrow_unseen(lo: np.ndarray, hi: np.ndarray, row: np.ndarray, rtol: float) -> int:
+    """The UNSEEN factor: narrow pose a and landmark b (angle and length slots are constants)."""
+    ixa, iya, ita, ixb, iyb = row[XA], row[YA], row[TA], row[XB], row[YB]
+    dxlo, dxhi = sub(lo[ixb], hi[ixb], lo[ixa], hi[ixa])
+    dylo, dyhi = sub(lo[iyb], hi[iyb], lo[iya], hi[iya])
+    dxlo, dxhi, dylo, dyhi, talo, tahi = unseen_contract(
+        dxlo, dxhi, dylo, dyhi, lo[ita], hi[ita], lo[row[ANGLE]], hi[row[ANGLE]], lo[row[LENGTH]]
+    )
+    if dxlo > dxhi:
+        return EMPTY_FACTOR
+    xalo, xahi, xblo, xbhi = _translate(lo[ixa], hi[ixa], lo[ixb], hi[ixb], dxlo, dxhi)
+    yalo, yahi, yblo, ybhi = _translate(lo[iya], hi[iya], lo[iyb], hi[iyb], dylo, dyhi)
+    if xalo > xahi or xblo > xbhi or yalo > yahi or yblo > ybhi:
+        return EMPTY_FACTOR
+    mask = 0
+    mask |= _store(lo, hi, ixa, xalo, xahi, rtol) << 0
+    mask |= _store(lo, hi, iya, yalo, yahi, rtol) << 1
+    mask |= _store(lo, hi, ita, talo, tahi, rtol) << 2
+    mask |= _store(lo, hi, ixb, xblo, xbhi, rtol) << 3
+    mask |= _store(lo, hi, iyb, yblo, ybhi, rtol) << 4
+    return mask
+
+
+@jit
+def _store(
+    lo: np.ndarray, hi: np.ndarray, i: int, new_lo: float, new_hi: float, rtol: float
+) -> int:
     """Write a narrowed interval back (never widening); 1 when it shrank by more than rtol."""
     old_lo, old_hi = lo[i], hi[i]
     new_lo = max(new_lo, old_lo)

@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from cuikslam._jit import jit
-from cuikslam.narrowing._factors import EMPTY_FACTOR, N_SLOTS, narrow_factor
+from cuikslam.graph.encoding import N_SLOTS
+from cuikslam.narrowing._factors import EMPTY_FACTOR, narrow_factor
 
 CONSISTENT = 0
 INCONSISTENT = 1
@@ -22,8 +23,9 @@ def propagate_arrays(
     lo: np.ndarray,
     hi: np.ndarray,
     factors: np.ndarray,
-    adjacency_ptr: np.ndarray,
-    adjacency: np.ndarray,
+    head: np.ndarray,
+    entry_factor: np.ndarray,
+    entry_next: np.ndarray,
     touched: np.ndarray,
     rtol: float,
     max_rounds: int,
@@ -31,29 +33,30 @@ def propagate_arrays(
 ) -> tuple[int, int]:
     """Narrow ``lo``/``hi`` in place to the fixpoint of the factors' operators.
 
-    ``adjacency[adjacency_ptr[v]:adjacency_ptr[v + 1]]`` lists the factors of variable v
-    (CSR layout). ``touched`` lists the factors to apply first; only what they wake runs
-    afterwards (incremental propagation). Returns ``(status, applications)`` where status
-    is CONSISTENT, INCONSISTENT (a proof: no solution in the box) or BUDGET_EXHAUSTED
-    (stopped early; the boxes are still sound, just not at the fixpoint).
+    The factors of variable v are found by walking its adjacency list (see
+    :func:`cuikslam.graph.encoding.link_factor`). ``touched`` lists the factors to apply
+    first; only what they wake runs afterwards (incremental propagation). Returns
+    ``(status, applications)`` where status is CONSISTENT, INCONSISTENT (a proof: no
+    solution in the box) or BUDGET_EXHAUSTED (stopped early; the boxes are still sound,
+    just not at the fixpoint).
     """
     n_factors = factors.shape[0]
     capacity = n_factors + 1
     queue = np.empty(capacity, dtype=np.int64)
     queued = np.zeros(n_factors, dtype=np.bool_)
-    head = 0
+    head_q = 0
     size = 0
     for f in touched:
         if not queued[f]:
-            queue[(head + size) % capacity] = f
+            queue[(head_q + size) % capacity] = f
             size += 1
             queued[f] = True
     applications = 0
     while size > 0:
         if applications >= max_applications:
             return BUDGET_EXHAUSTED, applications
-        f = queue[head]
-        head = (head + 1) % capacity
+        f = queue[head_q]
+        head_q = (head_q + 1) % capacity
         size -= 1
         queued[f] = False
         row = factors[f]
@@ -66,11 +69,12 @@ def propagate_arrays(
         for s in range(N_SLOTS):
             if (mask >> s) & 1 == 0:
                 continue
-            v = row[1 + s]
-            for j in range(adjacency_ptr[v], adjacency_ptr[v + 1]):
-                g = adjacency[j]
+            e = head[row[1 + s]]
+            while e >= 0:
+                g = entry_factor[e]
+                e = entry_next[e]
                 if g != f and not queued[g]:
-                    queue[(head + size) % capacity] = g
+                    queue[(head_q + size) % capacity] = g
                     size += 1
                     queued[g] = True
     return CONSISTENT, applications

@@ -80,13 +80,14 @@ def propagate(
     factors = graph.factor_table()
     if touched is None:
         touched = np.arange(factors.shape[0], dtype=np.int64)
-    ptr, adjacency = graph.adjacency()
+    head, entry_factor, entry_next = graph.adjacency()
     status, applications = propagate_arrays(
         lo,
         hi,
         factors,
-        ptr,
-        adjacency,
+        head,
+        entry_factor,
+        entry_next,
         np.asarray(touched, dtype=np.int64),
         float(rtol),
         int(max_rounds),

@@ -78,10 +78,20 @@ def write_result_file(solution: Solution, path: str | os.PathLike[str]) -> None:
 
 
 def _read_bounds(value: Any, where: str) -> tuple[float, float]:
+    """``[lo, hi]`` of finite numbers (``null`` = unbounded side) with ``lo <= hi``."""
+    shown = json.dumps(value)
+    shown = shown if len(shown) <= 60 else shown[:57] + "..."
     if not (isinstance(value, list) and len(value) == 2):
-        raise ValueError(f"{where} must be [lo, hi]")
+        raise ValueError(f"{where} must be [lo, hi], got {shown}")
+    for v in value:
+        if v is not None and (isinstance(v, bool) or not isinstance(v, int | float)):
+            raise ValueError(f"{where} must be [lo, hi] of two numbers (or null), got {shown}")
+        if v is not None and not math.isfinite(v):
+            raise ValueError(f"{where} holds {v}; bounds must be finite numbers or null")
     lo = -math.inf if value[0] is None else float(value[0])
     hi = math.inf if value[1] is None else float(value[1])
+    if lo > hi:
+        raise ValueError(f"{where} is the interval {shown} with lo > hi")
     return lo, hi
 
 
@@ -113,7 +123,10 @@ def _hypothesis_from_json(doc: dict[str, Any], where: str) -> Hypothesis:
 
 
 def read_result_file(path: str | os.PathLike[str]) -> Solution:
-    """Read a result JSON written by :func:`write_result_file` (raises LogFormatError if malformed)."""
+    """Read a result JSON written by :func:`write_result_file`.
+
+    Raises LogFormatError (one line naming the file) if it is unreadable or malformed.
+    """
     name = os.fspath(path)
     try:
         with open(name, encoding="utf-8") as handle:
@@ -122,10 +135,17 @@ def read_result_file(path: str | os.PathLike[str]) -> Solution:
         raise LogFormatError(name, None, f"cannot read result file: {err.strerror}") from None
     except json.JSONDecodeError as err:
         raise LogFormatError(name, err.lineno, f"malformed JSON: {err.msg}") from None
+    except UnicodeDecodeError as err:
+        problem = f"the file is not UTF-8 text (bad byte at offset {err.start})"
+        raise LogFormatError(name, None, problem) from None
+    except RecursionError:
+        raise LogFormatError(name, None, "malformed JSON: nested too deeply") from None
+    if not isinstance(doc, dict):
+        problem = 'not a cuikslam result file: expected a JSON object {"hypotheses": ...}'
+        raise LogFormatError(name, None, problem)
     try:
         hypotheses = [
-            _hypothesis_from_json(h, f"hypothesis {i + 1}")
-            for i, h in enumerate(doc["hypotheses"])
+            _hypothesis_from_json(h, f"hypothesis {i + 1}") for i, h in enumerate(doc["hypotheses"])
         ]
         return Solution(
             hypotheses=hypotheses,

@@ -18,7 +18,15 @@ from types import MappingProxyType
 
 import numpy as np
 
-from cuikslam.log.records import Bounds, Log, Observation, Odometry, PosePrior, Record
+from cuikslam.log.records import (
+    Bounds,
+    Log,
+    Observation,
+    Odometry,
+    PosePrior,
+    Record,
+    SensorModel,
+)
 from cuikslam.simulate.truth import GroundTruth, noisy_interval, wrap_angle
 
 __all__ = [
@@ -113,7 +121,10 @@ def simulate_paper(seed: int = 0, unknown: bool = False) -> tuple[Log, GroundTru
     rng = np.random.default_rng(seed)
     truth = paper_truth()
     x1, y1, t1 = (float(v) for v in truth.poses_xyt[0])
-    records: list[Record] = [PosePrior(POSE_IDS[0], (x1, x1), (y1, y1), (t1, t1))]
+    records: list[Record] = [
+        SensorModel(nearest_margin=TIE_MARGIN),
+        PosePrior(POSE_IDS[0], (x1, x1), (y1, y1), (t1, t1)),
+    ]
     for i, pose in enumerate(POSE_IDS):
         xyt = truth.poses_xyt[i]
         for lid in _seen_from(xyt[:2], truth.landmarks_xy):

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cuikslam.log.records import Log, Observation, Odometry, PosePrior, Record
+from cuikslam.log.records import Log, Observation, Odometry, PosePrior, Record, SensorModel
 from cuikslam.simulate.truth import GroundTruth, noisy_interval, wrap_angle
 
 __all__ = ["WANDER_TURN", "WorldSpec", "simulate_random_world", "simulate_world"]
@@ -156,7 +156,10 @@ def simulate_world(spec: WorldSpec, seed: int = 0) -> tuple[Log, GroundTruth]:
     turn_bound, distance_bound = spec.odometry_bounds
     range_bound, bearing_bound = spec.observation_bounds
     x0, y0, t0 = (float(v) for v in poses_xyt[0])
-    records: list[Record] = [PosePrior(0, (x0, x0), (y0, y0), (t0, t0))]
+    records: list[Record] = [
+        SensorModel(max_range=spec.max_range, fov=min(spec.fov, 2 * math.pi)),
+        PosePrior(0, (x0, x0), (y0, y0), (t0, t0)),
+    ]
     assignment: list[str] = []
     for i in range(spec.n_poses):
         for j, true_range, true_bearing in sightings[i]:

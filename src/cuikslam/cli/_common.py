@@ -1,0 +1,65 @@
+"""What the subcommands share: the user-facing error and checked, atomic output files.
+
+Kept apart from :mod:`cuikslam.cli.main` so that ``python -m cuikslam.cli.main`` (where
+``main`` runs as ``__main__``) and the subcommand modules raise and catch the same
+:class:`CommandError` class.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from pathlib import Path
+
+__all__ = [
+    "FIGURE_SUFFIXES",
+    "CommandError",
+    "check_figure_path",
+    "check_output_path",
+    "write_output",
+]
+
+
+class CommandError(Exception):
+    """A user-facing failure: printed as one line, exit status 2."""
+
+
+def check_output_path(path: str | os.PathLike[str]) -> None:
+    """Fail early, naming ``path``, when a file cannot be created there.
+
+    Called before any work is done so that a typo in an output path costs nothing and
+    leaves nothing behind.
+    """
+    target = Path(path)
+    if target.is_dir():
+        raise CommandError(f"{path}: cannot write: it is a directory")
+    folder = target.parent
+    if not folder.exists():
+        raise CommandError(f"{path}: cannot write: the folder {folder} does not exist")
+    if not folder.is_dir():
+        raise CommandError(f"{path}: cannot write: {folder} is not a folder")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise CommandError(f"{path}: cannot write: no permission to create files in {folder}")
+
+
+FIGURE_SUFFIXES = (".png", ".pdf", ".svg")
+"""Figure formats ``save_figure`` writes (chosen by the file's suffix)."""
+
+
+def check_figure_path(path: str | os.PathLike[str]) -> None:
+    """:func:`check_output_path`, and the suffix names a figure format we can write."""
+    if Path(path).suffix.lower() not in FIGURE_SUFFIXES:
+        raise CommandError(
+            f"{path}: cannot tell the image format from the name; "
+            f"end it with {', '.join(FIGURE_SUFFIXES)}"
+        )
+    check_output_path(path)
+
+
+def write_output(path: str | os.PathLike[str], write: Callable[[], None]) -> None:
+    """Run ``write`` (an atomic write of ``path``); an OSError names ``path``, not the
+    temporary file the atomic write was using."""
+    try:
+        write()
+    except OSError as err:
+        raise CommandError(f"{path}: cannot write: {err.strerror or err}") from None

@@ -1,0 +1,598 @@
+"""The ``cuikslam`` command, run as a subprocess: happy paths, bad input, exit statuses.
+
+Contract under test: bad input (a malformed or unreadable file, a bad output path) gives
+exactly one line on stderr naming the file (and the line, for a problem in one record),
+exit status 2, no traceback, and no output file touched; a result that reports a problem
+(an inconsistent log, boxes missing the truth) gives exit status 1.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+TIMEOUT = 120
+CLI = [sys.executable, "-m", "cuikslam.cli.main"]
+CSV_HEADER = [
+    "hypothesis",
+    "kind",
+    "id",
+    "class",
+    "x_lo",
+    "x_hi",
+    "y_lo",
+    "y_hi",
+    "theta_lo",
+    "theta_hi",
+]
+
+
+def run(*args: object, cwd: Path) -> subprocess.CompletedProcess[str]:
+    """Run ``cuikslam ARGS`` in ``cwd``; a non-interactive, wide, colourless run."""
+    env = {**os.environ, "COLUMNS": "220", "NO_COLOR": "1", "MPLBACKEND": "Agg"}
+    return subprocess.run(
+        [*CLI, *map(str, args)],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        encoding="utf-8",
+        timeout=TIMEOUT,
+        env=env,
+        check=False,
+    )
+
+
+def assert_input_error(result: subprocess.CompletedProcess[str], *fragments: str) -> str:
+    """Exit status 2, one line on stderr holding every fragment, no traceback; the line."""
+    assert "Traceback" not in result.stderr, result.stderr
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1, result.stderr
+    assert result.returncode == 2, (result.returncode, result.stderr)
+    line = lines[0]
+    assert line.startswith("cuikslam: error: "), line
+    for fragment in fragments:
+        assert fragment in line, (fragment, line)
+    return line
+
+
+def listing(folder: Path) -> dict[str, bytes]:
+    """Every file under ``folder`` (hidden ones too) with its bytes."""
+    return {
+        str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()
+    }
+
+
+def load(path: Path) -> dict:
+    return json.loads(path.read_text(encoding="utf-8"))
+
+
+def check_bounds(pair: list, where: str) -> None:
+    assert isinstance(pair, list) and len(pair) == 2, where
+    lo = -math.inf if pair[0] is None else pair[0]
+    hi = math.inf if pair[1] is None else pair[1]
+    assert isinstance(lo, int | float) and isinstance(hi, int | float), where
+    assert lo <= hi, (where, pair)
+
+
+def check_result_contract(doc: dict, n_observations: int) -> None:
+    """The stable keys of a result JSON, with every interval ``lo <= hi``."""
+    assert isinstance(doc["complete"], bool)
+    assert isinstance(doc["hypotheses"], list) and doc["hypotheses"]
+    for h in doc["hypotheses"]:
+        assert isinstance(h["assignment"], list) and len(h["assignment"]) == n_observations
+        assert all(isinstance(a, str) for a in h["assignment"])
+        assert h["poses"]
+        for pose_id, box in h["poses"].items():
+            int(pose_id)
+            for key in ("x", "y", "theta"):
+                check_bounds(box[key], f"pose {pose_id} {key}")
+        assert set(h["assignment"]) <= set(h["landmarks"])
+        for mark_id, box in h["landmarks"].items():
+            assert isinstance(box["class"], str) and box["class"], mark_id
+            for key in ("x", "y"):
+                check_bounds(box[key], f"landmark {mark_id} {key}")
+
+
+def check_csv(path: Path, doc: dict) -> None:
+    with path.open(encoding="utf-8", newline="") as handle:
+        rows = list(csv.reader(handle))
+    assert rows[0] == CSV_HEADER
+    expected = sum(len(h["poses"]) + len(h["landmarks"]) for h in doc["hypotheses"])
+    assert len(rows) - 1 == expected
+    for row in rows[1:]:
+        assert len(row) == len(CSV_HEADER)
+        assert row[1] in ("pose", "landmark")
+        numbers = [float(v) for v in row[4:] if v != ""]
+        assert len(numbers) == (6 if row[1] == "pose" else 4)
+        for lo, hi in zip(numbers[::2], numbers[1::2], strict=True):
+            assert lo <= hi, row
+
+
+def is_png(path: Path) -> bool:
+    data = path.read_bytes()
+    return len(data) > 1000 and data.startswith(b"\x89PNG\r\n\x1a\n")
+
+
+def n_observations(log: Path) -> int:
+    return sum('"observation"' in line for line in log.read_text(encoding="utf-8").splitlines())
+
+
+# --------------------------------------------------------------------------- logs
+def rec(**fields: object) -> str:
+    return json.dumps(fields)
+
+
+PRIOR = rec(type="prior", pose=0, x=[0, 0], y=[0, 0], theta=[0, 0])
+ODOMETRY = rec(type="odometry", **{"from": 0, "to": 1}, turn=[0, 0.05], distance=[1, 1.1])
+OBSERVATION = rec(
+    type="observation", pose=1, **{"class": "door"}, range=[1, 1.1], bearing=[0, 0.1], landmark="L0"
+)
+
+
+def replace(line: str, **fields: object) -> str:
+    return json.dumps({**json.loads(line), **fields})
+
+
+def drop(line: str, field: str) -> str:
+    doc = json.loads(line)
+    del doc[field]
+    return json.dumps(doc)
+
+
+# (id, lines, line number of the problem, fragment of the message). Comments and blank
+# lines count in line numbers, so several cases put the problem after some.
+BAD_LOGS = [
+    (
+        "malformed-json",
+        ["# trip", PRIOR, "", '{"type": "odometry", "from": 0,'],
+        4,
+        "malformed JSON",
+    ),
+    ("truncated-line", [PRIOR, ODOMETRY[:-5]], 2, "malformed JSON"),
+    ("not-an-object", [PRIOR, "[1, 2]"], 2, "expected a JSON object"),
+    ("missing-field", [PRIOR, drop(ODOMETRY, "distance")], 2, 'missing field "distance"'),
+    ("missing-type", [PRIOR, drop(ODOMETRY, "type")], 2, '"type"'),
+    ("unknown-field", ["# c", "# c", PRIOR, replace(ODOMETRY, distanse=[1, 2])], 4, '"distanse"'),
+    ("unknown-type", [PRIOR, replace(ODOMETRY, type="odom")], 2, 'unknown record type "odom"'),
+    ("duplicate-field", [PRIOR[:-1] + ', "x": [1, 1]}'], 1, 'field "x" appears twice'),
+    ("lo-gt-hi", [PRIOR, ODOMETRY, replace(OBSERVATION, bearing=[0.5, 0.4])], 3, "lo > hi"),
+    ("nan", [PRIOR, ODOMETRY.replace("[1, 1.1]", "[NaN, 1.1]")], 2, "NaN"),
+    ("infinity", ["", PRIOR.replace('"y": [0, 0]', '"y": [-Infinity, 0]')], 2, "Infinity"),
+    ("overflow", [PRIOR, ODOMETRY.replace("[1, 1.1]", "[1, 1e999]")], 2, "finite"),
+    ("negative-range", [PRIOR, ODOMETRY, replace(OBSERVATION, range=[-0.1, 1])], 3, "negative"),
+    ("negative-distance", [PRIOR, replace(ODOMETRY, distance=[-1, 1])], 2, "negative"),
+    ("bad-pose-id", [PRIOR, replace(ODOMETRY, to=1.5)], 2, "pose id"),
+    ("empty-class", [PRIOR, ODOMETRY, replace(OBSERVATION, **{"class": ""})], 3, "non-empty"),
+    (
+        "unreached-observation",
+        [PRIOR, ODOMETRY, "# pose 7 was never reached", replace(OBSERVATION, pose=7)],
+        4,
+        "observation from pose 7, which no prior or earlier odometry reaches",
+    ),
+    (
+        "unreached-odometry",
+        [PRIOR, replace(ODOMETRY, **{"from": 5, "to": 6})],
+        2,
+        "odometry from pose 5",
+    ),
+    ("odometry-to-itself", [PRIOR, replace(ODOMETRY, to=0)], 2, "to itself"),
+    (
+        "class-conflict",
+        [PRIOR, ODOMETRY, OBSERVATION, replace(OBSERVATION, pose=0, **{"class": "tree"})],
+        4,
+        'landmark "L0" has class "tree" here but class "door" on line 3',
+    ),
+    (
+        "one-scan-twice",
+        [PRIOR, ODOMETRY, OBSERVATION, replace(OBSERVATION, range=[2, 3])],
+        4,
+        'already observed landmark "L0" on line 3',
+    ),
+]
+
+# Problems of the whole file: "FILE: PROBLEM", no line number.
+BAD_FILES = [
+    ("empty", b"", "the log is empty"),
+    ("only-comments", b"# nothing was measured\n\n   \n", "the log is empty"),
+    ("no-prior", (ODOMETRY + "\n").encode(), "no pose has a prior"),
+    ("not-utf8", (PRIOR + "\n").encode() + b'{"type": "\xff"}\n', "not UTF-8"),
+]
+
+
+def fresh_outputs(folder: Path) -> tuple[Path, Path]:
+    """Pre-existing --json and --csv targets, to check that they are left untouched."""
+    out_json, out_csv = folder / "out.json", folder / "out.csv"
+    out_json.write_text('{"old": true}\n', encoding="utf-8")
+    out_csv.write_text("old,csv\n", encoding="utf-8")
+    return out_json, out_csv
+
+
+@pytest.mark.parametrize(
+    ("lines", "line", "fragment"),
+    [pytest.param(lines, line, fragment, id=name) for name, lines, line, fragment in BAD_LOGS],
+)
+def test_bad_log_record(tmp_path: Path, lines: list[str], line: int, fragment: str) -> None:
+    log = tmp_path / "bad.jsonl"
+    log.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    fresh_outputs(tmp_path)
+    before = listing(tmp_path)
+    result = run("solve", "bad.jsonl", "--json", "out.json", "--csv", "out.csv", cwd=tmp_path)
+    message = assert_input_error(result, f"bad.jsonl:{line}: ", fragment)
+    assert len(re.findall(r":\d+:", message)) == 1, message
+    assert result.stdout == ""
+    assert listing(tmp_path) == before
+
+
+@pytest.mark.parametrize(
+    ("content", "fragment"),
+    [pytest.param(content, fragment, id=name) for name, content, fragment in BAD_FILES],
+)
+def test_bad_log_file(tmp_path: Path, content: bytes, fragment: str) -> None:
+    (tmp_path / "bad.jsonl").write_bytes(content)
+    fresh_outputs(tmp_path)
+    before = listing(tmp_path)
+    result = run("solve", "bad.jsonl", "--json", "out.json", "--csv", "out.csv", cwd=tmp_path)
+    assert_input_error(result, "bad.jsonl: ", fragment)
+    assert result.stdout == ""
+    assert listing(tmp_path) == before
+
+
+def test_bad_log_named_by_absolute_path(tmp_path: Path) -> None:
+    log = tmp_path / "deep" / "trip.jsonl"
+    log.parent.mkdir()
+    log.write_text(f"{PRIOR}\n{replace(ODOMETRY, distance=[2, 1])}\n", encoding="utf-8")
+    result = run("solve", log, cwd=tmp_path)
+    assert_input_error(result, f"{log}:2: ", "lo > hi")
+
+
+# --------------------------------------------------------------------------- paths
+def test_missing_log(tmp_path: Path) -> None:
+    before = listing(tmp_path)
+    result = run("solve", "nowhere.jsonl", "--json", "out.json", cwd=tmp_path)
+    assert_input_error(result, "nowhere.jsonl", "No such file")
+    assert listing(tmp_path) == before
+
+
+def test_directory_as_log(tmp_path: Path) -> None:
+    (tmp_path / "trip.jsonl").mkdir()
+    result = run("solve", "trip.jsonl", cwd=tmp_path)
+    assert_input_error(result, "trip.jsonl", "directory")
+
+
+@pytest.fixture(scope="module")
+def small_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("small")
+    log = folder / "small.jsonl"
+    log.write_text("\n".join([PRIOR, ODOMETRY, OBSERVATION]) + "\n", encoding="utf-8")
+    return log
+
+
+@pytest.mark.parametrize(
+    ("option", "target", "fragment"),
+    [
+        pytest.param("--json", "missing/out.json", "does not exist", id="json-no-folder"),
+        pytest.param("--csv", "missing/sub/out.csv", "does not exist", id="csv-no-folder"),
+        pytest.param("--json", "folder", "directory", id="json-is-a-directory"),
+        pytest.param("--csv", "afile/out.csv", "not a folder", id="csv-under-a-file"),
+    ],
+)
+def test_unwritable_output(
+    tmp_path: Path, small_log: Path, option: str, target: str, fragment: str
+) -> None:
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "afile").write_text("x", encoding="utf-8")
+    before = listing(tmp_path)
+    result = run("solve", small_log, option, target, cwd=tmp_path)
+    line = assert_input_error(result, target, fragment)
+    assert ".tmp" not in line  # names the target, not the atomic write's temporary file
+    assert listing(tmp_path) == before
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() == 0, reason="root writes anywhere")
+def test_read_only_output_folder(tmp_path: Path, small_log: Path) -> None:
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    locked.chmod(0o500)
+    try:
+        result = run("solve", small_log, "--json", "locked/out.json", cwd=tmp_path)
+        assert_input_error(result, "locked/out.json", "permission")
+        assert list(locked.iterdir()) == []
+    finally:
+        locked.chmod(0o700)
+
+
+def test_simulate_into_missing_folder(tmp_path: Path) -> None:
+    result = run("simulate", "paper", "-o", "missing/trip.jsonl", cwd=tmp_path)
+    assert_input_error(result, "missing/trip.jsonl", "does not exist")
+    assert listing(tmp_path) == {}
+
+
+@pytest.mark.parametrize(
+    "options",
+    [
+        pytest.param(["--poses", "0"], id="no-poses"),
+        pytest.param(["--max-range", "-1"], id="negative-range"),
+        pytest.param(["--max-range", "nan"], id="nan-range"),
+        pytest.param(["--classes", "door,,post"], id="empty-class"),
+    ],
+)
+def test_simulate_impossible_world(tmp_path: Path, options: list[str]) -> None:
+    result = run("simulate", "random", "-o", "w.jsonl", *options, cwd=tmp_path)
+    assert_input_error(result)
+    assert listing(tmp_path) == {}
+
+
+def test_unknown_figure_format(tmp_path: Path) -> None:
+    result = run("paper", "--figure", "figure.jpg", cwd=tmp_path)
+    assert_input_error(result, "figure.jpg", ".png")
+    assert result.stdout == ""
+    assert listing(tmp_path) == {}
+
+
+def test_usage_error_exits_2(tmp_path: Path) -> None:
+    result = run("solve", cwd=tmp_path)
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+    assert "usage:" in result.stderr
+
+
+@pytest.mark.parametrize("command", [None, "paper", "solve", "simulate", "plot"])
+def test_help(tmp_path: Path, command: str | None) -> None:
+    result = run(*([command] if command else []), "--help", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert "usage: cuikslam" in result.stdout
+    assert result.stderr == ""
+
+
+def test_console_script_version(tmp_path: Path) -> None:
+    script = shutil.which("cuikslam") or shutil.which("cuikslam", path=Path(sys.executable).parent)
+    if script is None:
+        pytest.skip("the cuikslam console script is not installed")
+    result = subprocess.run(
+        [script, "--version"], capture_output=True, text=True, timeout=TIMEOUT, check=False
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("cuikslam ")
+
+
+# --------------------------------------------------------------------------- happy paths
+@pytest.fixture(scope="module")
+def paper_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
+    """``simulate paper`` then ``solve --json --csv --truth`` on it, once for the module."""
+    folder = tmp_path_factory.mktemp("paper")
+    sim = run("simulate", "paper", "-o", "trip.jsonl", cwd=folder)
+    assert sim.returncode == 0, sim.stderr
+    solved = run(
+        "solve",
+        "trip.jsonl",
+        "--json",
+        "result.json",
+        "--csv",
+        "result.csv",
+        "--truth",
+        "trip.truth.json",
+        cwd=folder,
+    )
+    assert solved.returncode == 0, solved.stdout + solved.stderr
+    assert "Traceback" not in solved.stderr
+    return folder, {"simulate": sim, "solve": solved}
+
+
+def test_simulate_writes_log_and_truth(paper_run: tuple[Path, dict]) -> None:
+    folder, runs = paper_run
+    log, truth = folder / "trip.jsonl", folder / "trip.truth.json"
+    lines = log.read_text(encoding="utf-8").splitlines()
+    assert all(json.loads(line)["type"] for line in lines)
+    doc = load(truth)
+    assert {"poses", "landmarks", "assignment"} <= set(doc)
+    assert len(doc["poses"]) == 9
+    assert len(doc["assignment"]) == n_observations(log)
+    assert "trip.truth.json" in runs["simulate"].stderr
+
+
+def test_solve_prints_table_and_truth_check(paper_run: tuple[Path, dict]) -> None:
+    out = paper_run[1]["solve"].stdout
+    for row in ("description", "r 1", "r 5", "r 9", "l L1", "l L4"):
+        assert re.search(rf"\b{row}\b", out), row
+    assert re.search(r"truth check: every box .* contains the truth", out)
+
+
+def test_solve_writes_json_and_csv(paper_run: tuple[Path, dict]) -> None:
+    folder = paper_run[0]
+    doc = load(folder / "result.json")
+    check_result_contract(doc, n_observations(folder / "trip.jsonl"))
+    assert doc["complete"] is True
+    assert len(doc["hypotheses"]) == 1
+    h = doc["hypotheses"][0]
+    truth = load(folder / "trip.truth.json")
+    assert h["assignment"] == truth["assignment"]
+    assert set(h["poses"]) == set(truth["poses"])
+    for pose_id, (x, y, _theta) in truth["poses"].items():
+        box = h["poses"][pose_id]
+        assert box["x"][0] <= x <= box["x"][1] and box["y"][0] <= y <= box["y"][1]
+    for mark_id, mark in truth["landmarks"].items():
+        assert h["landmarks"][mark_id]["class"] == mark["class"]
+    check_csv(folder / "result.csv", doc)
+    assert not [p for p in folder.iterdir() if p.name.startswith(".")]  # no temporary left
+
+
+def test_plot_reads_solve_json(paper_run: tuple[Path, dict]) -> None:
+    folder = paper_run[0]
+    result = run("plot", "result.json", "-o", "boxes.png", "--truth", "trip.truth.json", cwd=folder)
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr
+    assert is_png(folder / "boxes.png")
+
+
+def test_solve_truth_miss_exits_1(paper_run: tuple[Path, dict]) -> None:
+    folder = paper_run[0]
+    truth = load(folder / "trip.truth.json")
+    pose = sorted(truth["poses"], key=int)[-1]
+    truth["poses"][pose][0] += 100.0  # the last pose moved 100 m away: its box misses it
+    (folder / "moved.truth.json").write_text(json.dumps(truth), encoding="utf-8")
+    result = run("solve", "trip.jsonl", "-q", "--truth", "moved.truth.json", cwd=folder)
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "miss" in result.stdout
+    assert "every box" not in result.stdout
+    assert "Traceback" not in result.stderr
+
+
+def test_paper(tmp_path: Path) -> None:
+    result = run("paper", "--figure", "paper.png", "--json", "paper.json", cwd=tmp_path)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "Traceback" not in result.stderr
+    out = result.stdout
+    for pose in range(1, 10):
+        assert re.search(rf"│ r {pose}\s", out), pose
+    for mark in ("l L1", "l L2", "l L3", "l L4"):
+        assert mark in out
+    assert "(seed)" in out and "(cuikslam)" in out  # the seed's Table 1 beside ours
+    assert "width ratio" in out
+    assert re.search(r"\d\.\d\d / \d\.\d\d / \d\.\d\d", out)  # a pose row's three ratios
+    assert re.search(r"truth check: every box .* contains the truth", out)
+    assert is_png(tmp_path / "paper.png")
+    doc = load(tmp_path / "paper.json")
+    check_result_contract(doc, len(doc["hypotheses"][0]["assignment"]))
+    assert len(doc["hypotheses"][0]["poses"]) == 9
+
+
+def test_simulate_random_then_solve_with_truth(tmp_path: Path) -> None:
+    sim = run(
+        "simulate", "random", "-o", "world.jsonl", "--seed", "3", "--poses", "20", cwd=tmp_path
+    )
+    assert sim.returncode == 0, sim.stderr
+    assert (tmp_path / "world.truth.json").is_file()
+    result = run("solve", "world.jsonl", "--truth", "world.truth.json", cwd=tmp_path)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert re.search(r"truth check: every box .* contains the truth", result.stdout)
+    assert "r 1" in result.stdout
+
+
+# --------------------------------------------------------------------------- inconsistency
+INCONSISTENT = [
+    # Landmark L0 seen 1 m to the right, then 20 m straight ahead, then L0 1 m to the right
+    # again: no position of L0 fits both, and narrowing proves it.
+    PRIOR,
+    rec(
+        type="observation",
+        pose=0,
+        **{"class": "door"},
+        range=[0.99, 1.01],
+        bearing=[-1.58, -1.56],
+        landmark="L0",
+    ),
+    rec(type="odometry", **{"from": 0, "to": 1}, turn=[-0.01, 0.01], distance=[19.9, 20.1]),
+    rec(
+        type="observation",
+        pose=1,
+        **{"class": "door"},
+        range=[0.99, 1.01],
+        bearing=[-1.58, -1.56],
+        landmark="L0",
+    ),
+]
+
+
+@pytest.mark.parametrize("quiet", [False, True], ids=["table", "quiet"])
+def test_inconsistent_log_exits_1(tmp_path: Path, quiet: bool) -> None:
+    (tmp_path / "twice.jsonl").write_text("\n".join(INCONSISTENT) + "\n", encoding="utf-8")
+    args = ["solve", "twice.jsonl", "--json", "r.json", *(["-q"] if quiet else [])]
+    result = run(*args, cwd=tmp_path)
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert "Traceback" not in result.stderr
+    said = result.stdout + result.stderr
+    assert "inconsistent" in said and "proof" in said
+    doc = load(tmp_path / "r.json")
+    assert doc["hypotheses"] == []
+    assert doc["refuted"] is True
+    if not quiet:  # the refuted result has nothing to draw: plot refuses it cleanly
+        plotted = run("plot", "r.json", "-o", "r.png", cwd=tmp_path)
+        assert_input_error(plotted, "r.json", "no hypothesis")
+        assert not (tmp_path / "r.png").exists()
+
+
+# --------------------------------------------------------------------------- bad JSON inputs
+@pytest.fixture(scope="module")
+def good_result(paper_run: tuple[Path, dict]) -> dict:
+    return load(paper_run[0] / "result.json")
+
+
+def _lo_gt_hi(doc: dict) -> str:
+    box = next(iter(doc["hypotheses"][0]["poses"].values()))
+    box["x"] = [box["x"][1] + 1.0, box["x"][1]]
+    return json.dumps(doc)
+
+
+def _nan_bound(doc: dict) -> str:
+    box = next(iter(doc["hypotheses"][0]["landmarks"].values()))
+    box["y"] = [float("nan"), 1.0]
+    return json.dumps(doc)  # Python writes NaN, which json.load accepts
+
+
+def _no_poses(doc: dict) -> str:
+    del doc["hypotheses"][0]["poses"]
+    return json.dumps(doc)
+
+
+BAD_RESULTS = [
+    ("syntax", lambda doc: '{\n "complete": true,\n "hypotheses": [}\n', ["bad.json:3: "]),
+    ("not-an-object", lambda doc: "[]", ["bad.json: "]),
+    ("no-hypotheses", lambda doc: '{"complete": true}', ["hypotheses"]),
+    ("no-poses", _no_poses, ["poses"]),
+    ("lo-gt-hi", _lo_gt_hi, ["lo > hi"]),
+    ("nan", _nan_bound, ["nan"]),
+    ("not-utf8", None, ["UTF-8"]),
+]
+
+
+@pytest.mark.parametrize(
+    ("make", "fragments"),
+    [pytest.param(make, fragments, id=name) for name, make, fragments in BAD_RESULTS],
+)
+def test_plot_malformed_result(
+    tmp_path: Path, good_result: dict, make: object, fragments: list[str]
+) -> None:
+    bad = tmp_path / "bad.json"
+    if make is None:
+        bad.write_bytes(b'{"complete": "\xff"}')
+    else:
+        bad.write_text(make(json.loads(json.dumps(good_result))), encoding="utf-8")
+    before = listing(tmp_path)
+    result = run("plot", "bad.json", "-o", "fig.png", cwd=tmp_path)
+    assert_input_error(result, "bad.json", *fragments)
+    assert listing(tmp_path) == before
+
+
+@pytest.mark.parametrize(
+    ("content", "fragments"),
+    [
+        pytest.param('{\n "poses": {\n', ["bad.truth.json:3: "], id="syntax"),
+        pytest.param('{"poses": {}}', ["bad.truth.json: ", "landmarks"], id="missing-key"),
+    ],
+)
+def test_malformed_truth(
+    paper_run: tuple[Path, dict], tmp_path: Path, content: str, fragments: list[str]
+) -> None:
+    folder = paper_run[0]
+    (tmp_path / "bad.truth.json").write_text(content, encoding="utf-8")
+    shutil.copy(folder / "trip.jsonl", tmp_path)
+    shutil.copy(folder / "result.json", tmp_path)
+    fresh_outputs(tmp_path)
+    before = listing(tmp_path)
+    solved = run(
+        "solve", "trip.jsonl", "--truth", "bad.truth.json", "--json", "out.json", cwd=tmp_path
+    )
+    assert_input_error(solved, *fragments)
+    assert solved.stdout == ""
+    plotted = run("plot", "result.json", "-o", "fig.png", "--truth", "bad.truth.json", cwd=tmp_path)
+    assert_input_error(plotted, *fragments)
+    assert listing(tmp_path) == before
