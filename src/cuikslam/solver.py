@@ -12,9 +12,15 @@ from collections.abc import Callable
 import numpy as np
 
 from cuikslam.graph.kinematic_graph import KinematicGraph
-from cuikslam.hypotheses.search import DEFAULT_MAX_HYPOTHESES, solve_unknown
+from cuikslam.hypotheses.search import (
+    DEFAULT_MAX_HYPOTHESES,
+    DEFAULT_STRENGTHEN_LIMIT,
+    solve_unknown,
+)
 from cuikslam.log.records import Log
-from cuikslam.narrowing.propagation import DEFAULT_RTOL, propagate
+from cuikslam.narrowing._propagate import INCONSISTENT
+from cuikslam.narrowing.consistency import DEFAULT_LEVEL, Arrays, strengthen
+from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, Status, propagate
 from cuikslam.results.solution import Hypothesis, Solution
 
 __all__ = ["hypothesis_from_graph", "solve"]
@@ -40,7 +46,9 @@ def hypothesis_from_graph(
 def solve(
     log: Log,
     *,
+    consistency: str = DEFAULT_LEVEL,
     max_hypotheses: int = DEFAULT_MAX_HYPOTHESES,
+    strengthen_limit: int = DEFAULT_STRENGTHEN_LIMIT,
     rtol: float = DEFAULT_RTOL,
     progress: ProgressCallback | None = None,
 ) -> Solution:
@@ -51,11 +59,27 @@ def solve(
     landmark, the correspondence search of :func:`cuikslam.hypotheses.solve_unknown` runs.
     """
     if log.has_unknown_correspondence:
-        return solve_unknown(log, max_hypotheses=max_hypotheses, rtol=rtol, progress=progress)
+        return solve_unknown(
+            log,
+            consistency=consistency,
+            max_hypotheses=max_hypotheses,
+            strengthen_limit=strengthen_limit,
+            rtol=rtol,
+            progress=progress,
+        )
     start = time.perf_counter()
     assignment = [str(o.landmark) for o in log.observations]
     graph = KinematicGraph.from_log(log)
     result = propagate(graph, rtol=rtol)
+    if not result.is_empty:
+        head, entry_factor, entry_next = graph.adjacency()
+        arrays = Arrays(graph.factor_table(), head, entry_factor, entry_next)
+        status, applications = strengthen(
+            arrays, result.lo, result.hi, consistency, rtol, DEFAULT_ROUNDS
+        )
+        result.applications += applications
+        if status == INCONSISTENT:
+            result.status = Status.INCONSISTENT
     if progress is not None:
         progress(1, 1)
     elapsed = time.perf_counter() - start
@@ -71,7 +95,7 @@ def solve(
             statistics=statistics,
             timings={"solve_s": elapsed},
             log_path=log.path,
-            consistency="hull",
+            consistency=consistency,
             messages=["the log is inconsistent: its constraints contract to empty (a proof)"],
         )
     hypothesis = hypothesis_from_graph(graph, result.lo, result.hi, assignment)
@@ -80,5 +104,5 @@ def solve(
         statistics=statistics,
         timings={"solve_s": elapsed},
         log_path=log.path,
-        consistency="hull",
+        consistency=consistency,
     )

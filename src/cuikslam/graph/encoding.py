@@ -24,13 +24,15 @@ import numpy as np
 from cuikslam._jit import jit
 
 __all__ = [
-    "ANGLE", "KIND", "LENGTH", "N_SLOTS", "OBSERVATION", "ODOMETRY", "TA", "TB", "UNSEEN",
-    "XA", "XB", "YA", "YB", "link_factor",
+    "ANGLE", "KIND", "LENGTH", "NO_FACTOR", "N_SLOTS", "OBSERVATION", "ODOMETRY", "TA", "TB",
+    "UNSEEN", "XA", "XB", "YA", "YB", "link_factor",
 ]  # fmt: skip
 
 ODOMETRY = 0
 OBSERVATION = 1
 UNSEEN = 2
+NO_FACTOR = -1
+"""Kind (and variable indices) of an unused row in a preallocated factor table."""
 
 KIND, XA, YA, TA, XB, YB, TB, ANGLE, LENGTH = range(9)
 N_SLOTS = 8

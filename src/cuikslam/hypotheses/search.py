@@ -21,7 +21,14 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from cuikslam.graph.encoding import N_SLOTS, OBSERVATION, ODOMETRY, UNSEEN, link_factor
+from cuikslam.graph.encoding import (
+    N_SLOTS,
+    NO_FACTOR,
+    OBSERVATION,
+    ODOMETRY,
+    UNSEEN,
+    link_factor,
+)
 from cuikslam.hypotheses._gates import gate, pairs_within_reach
 from cuikslam.interval._rounding import PI_HI, TWO_PI_HI
 from cuikslam.log.records import (
@@ -32,13 +39,22 @@ from cuikslam.log.records import (
     PosePrior,
 )
 from cuikslam.narrowing._propagate import INCONSISTENT, propagate_arrays
+from cuikslam.narrowing.consistency import DEFAULT_LEVEL, Arrays, strengthen
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL
 from cuikslam.results.solution import Hypothesis, Solution
 
-__all__ = ["DEFAULT_MAX_HYPOTHESES", "SearchStatistics", "solve_unknown"]
+__all__ = [
+    "DEFAULT_MAX_HYPOTHESES",
+    "DEFAULT_STRENGTHEN_LIMIT",
+    "SearchStatistics",
+    "solve_unknown",
+]
 
 DEFAULT_MAX_HYPOTHESES = 10_000
 """Live hypotheses kept at most; beyond it the best-ranked are kept and the result is incomplete."""
+
+DEFAULT_STRENGTHEN_LIMIT = 100
+"""Surviving hypotheses narrowed to the stronger consistency level at most."""
 
 _ANY = (-math.inf, math.inf)
 
@@ -65,6 +81,8 @@ class SearchStatistics:
     """Children created (each a consistent-looking kinematic graph)."""
     avoided_by_labelling: int = 0
     """Label-permuted copies of the survivors that naming landmarks freely would have kept."""
+    refuted_by_consistency: int = 0
+    """Survivors of hull consistency refuted by the stronger consistency level."""
     peak_alive: int = 0
     dropped_by_limit: int = 0
     operator_applications: int = 0
@@ -177,7 +195,7 @@ class _Branch:
         n_factors = len(layout.factor_measurements)
         self.lo = np.array(layout.lo, dtype=np.float64)
         self.hi = np.array(layout.hi, dtype=np.float64)
-        self.factors = np.zeros((max(n_factors, 1), 1 + N_SLOTS), dtype=np.int64)
+        self.factors = np.full((max(n_factors, 1), 1 + N_SLOTS), NO_FACTOR, dtype=np.int64)
         self.n_factors = n_factors
         """Log factors occupy [0, n_log); UNSEEN factors are appended after them."""
         self.head = np.full(layout.n_vars, -1, dtype=np.int64)
@@ -216,7 +234,7 @@ class _Branch:
         needed = self.n_factors + len(rows)
         if needed > self.factors.shape[0]:
             capacity = max(needed, 2 * self.factors.shape[0])
-            grown = np.zeros((capacity, 1 + N_SLOTS), dtype=np.int64)
+            grown = np.full((capacity, 1 + N_SLOTS), NO_FACTOR, dtype=np.int64)
             grown[: self.factors.shape[0]] = self.factors
             self.factors = grown
             for name in ("entry_factor", "entry_next"):
@@ -277,6 +295,7 @@ class _Search:
         self.complete = True
         self.messages: list[str] = []
         self.has_sensor = log.sensor is not None
+        self.level_applied = "hull"
         self.observations_at: dict[int, list[int]] = {}
         """Pose -> record indices of its observations so far."""
         self.scan_done: list[int] = []
@@ -457,6 +476,39 @@ class _Search:
         self.branches = survivors
 
     # ------------------------------------------------------------------ ranking
+    def strengthen(self, level: str, limit: int) -> None:
+        """Narrow the live branches to ``level``; drop the ones that become empty (a proof).
+
+        Skipped (with a message) when more than ``limit`` branches live: the stronger
+        levels cost a fraction of a second per branch.
+        """
+        if level != "hull" and len(self.branches) > limit:
+            self.messages.append(
+                f"{len(self.branches)} hypotheses survived hull consistency: the '{level}' "
+                f"level was not applied to them (it is applied to at most {limit}; raise "
+                "--strengthen-limit to apply it); their boxes are hull-consistent"
+            )
+            self.level_applied = "hull"
+            return
+        self.level_applied = level
+        survivors = []
+        for branch in self.branches:
+            arrays = Arrays(
+                branch.factors[: branch.n_factors],
+                branch.head,
+                branch.entry_factor,
+                branch.entry_next,
+            )
+            status, applications = strengthen(
+                arrays, branch.lo, branch.hi, level, self.rtol, DEFAULT_ROUNDS
+            )
+            self.stats.operator_applications += applications
+            if status == INCONSISTENT:
+                self.stats.refuted_by_consistency += 1
+            else:
+                survivors.append(branch)
+        self.branches = survivors
+
     def _ranked(self) -> list[_Branch]:
         pose_xs = np.array(sorted(self.layout.pose_x.values()), dtype=np.int64)
         return sorted(self.branches, key=lambda b: (len(b.landmark_x), b.box_size(pose_xs)))
@@ -557,7 +609,9 @@ def _label_permutations(h: Hypothesis, user_ids: set[str]) -> int:
 def solve_unknown(
     log: Log,
     *,
+    consistency: str = DEFAULT_LEVEL,
     max_hypotheses: int = DEFAULT_MAX_HYPOTHESES,
+    strengthen_limit: int = DEFAULT_STRENGTHEN_LIMIT,
     rtol: float = DEFAULT_RTOL,
     progress: Callable[[int, int], None] | None = None,
 ) -> Solution:
@@ -569,6 +623,7 @@ def solve_unknown(
     start = time.perf_counter()
     search = _Search(log, rtol, max_hypotheses)
     search.run(progress)
+    search.strengthen(consistency, strengthen_limit)
     hypotheses = search.hypotheses()
     user_ids = set(search.layout.user_landmark_x)
     search.stats.avoided_by_labelling = sum(
@@ -597,6 +652,6 @@ def solve_unknown(
         statistics=statistics,
         timings={"solve_s": elapsed},
         log_path=log.path,
-        consistency="hull",
+        consistency=search.level_applied,
         messages=messages,
     )

@@ -13,6 +13,7 @@ from cuikslam.graph.encoding import (
     ANGLE,
     KIND,
     LENGTH,
+    NO_FACTOR,
     ODOMETRY,
     TA,
     TB,
@@ -68,6 +69,8 @@ def narrow_factor(
     solution in the box (then nothing is written).
     """
     kind = row[KIND]
+    if kind == NO_FACTOR:
+        return 0
     if kind == UNSEEN:
         return _narrow_unseen(lo, hi, row, rtol)
     ixa, iya, ita, ixb, iyb = row[XA], row[YA], row[TA], row[XB], row[YB]
