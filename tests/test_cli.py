@@ -403,7 +403,7 @@ def test_solve_prints_table_and_truth_check(paper_run: tuple[Path, dict]) -> Non
     out = paper_run[1]["solve"].stdout
     for row in ("description", "r 1", "r 5", "r 9", "l L1", "l L4"):
         assert re.search(rf"\b{row}\b", out), row
-    assert re.search(r"truth check: every box .* contains the truth", out)
+    assert re.search(r"truth check: the true correspondence survived.* all contain the truth", out)
 
 
 def test_solve_writes_json_and_csv(paper_run: tuple[Path, dict]) -> None:
@@ -442,7 +442,7 @@ def test_solve_truth_miss_exits_1(paper_run: tuple[Path, dict]) -> None:
     result = run("solve", "trip.jsonl", "-q", "--truth", "moved.truth.json", cwd=folder)
     assert result.returncode == 1, result.stdout + result.stderr
     assert "miss" in result.stdout
-    assert "every box" not in result.stdout
+    assert "all contain the truth" not in result.stdout
     assert "Traceback" not in result.stderr
 
 
@@ -458,7 +458,7 @@ def test_paper(tmp_path: Path) -> None:
     assert "(seed)" in out and "(cuikslam)" in out  # the seed's Table 1 beside ours
     assert "width ratio" in out
     assert re.search(r"\d\.\d\d / \d\.\d\d / \d\.\d\d", out)  # a pose row's three ratios
-    assert re.search(r"truth check: every box .* contains the truth", out)
+    assert re.search(r"truth check: the true correspondence survived.* all contain the truth", out)
     assert is_png(tmp_path / "paper.png")
     doc = load(tmp_path / "paper.json")
     check_result_contract(doc, len(doc["hypotheses"][0]["assignment"]))
@@ -473,7 +473,7 @@ def test_simulate_random_then_solve_with_truth(tmp_path: Path) -> None:
     assert (tmp_path / "world.truth.json").is_file()
     result = run("solve", "world.jsonl", "--truth", "world.truth.json", cwd=tmp_path)
     assert result.returncode == 0, result.stdout + result.stderr
-    assert re.search(r"truth check: every box .* contains the truth", result.stdout)
+    assert re.search(r"truth check: the true correspondence survived.* all contain the truth", result.stdout)
     assert "r 1" in result.stdout
 
 

@@ -11,6 +11,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.hypotheses.search import (
     DEFAULT_MAX_HYPOTHESES,
@@ -58,6 +59,7 @@ def solve(
     inconsistent (then ``Solution.refuted`` is True). When some observation names no
     landmark, the correspondence search of :func:`cuikslam.hypotheses.solve_unknown` runs.
     """
+    ensure_round_to_nearest()
     if log.has_unknown_correspondence:
         return solve_unknown(
             log,

@@ -8,7 +8,9 @@ Kept apart from :mod:`cuikslam.cli.main` so that ``python -m cuikslam.cli.main``
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 __all__ = [
@@ -16,6 +18,7 @@ __all__ = [
     "CommandError",
     "check_figure_path",
     "check_output_path",
+    "progress_bar",
     "write_output",
 ]
 
@@ -63,3 +66,33 @@ def write_output(path: str | os.PathLike[str], write: Callable[[], None]) -> Non
         write()
     except OSError as err:
         raise CommandError(f"{path}: cannot write: {err.strerror or err}") from None
+
+
+@contextmanager
+def progress_bar(
+    description: str, *, enabled: bool = True
+) -> Iterator[Callable[[int, int], None] | None]:
+    """A rich progress bar on stderr when it is a terminal; ``None`` (no bar) otherwise.
+
+    Yields the ``progress(done, total)`` callback that long solves call as they advance.
+    """
+    if not (enabled and sys.stderr.isatty()):
+        yield None
+        return
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
+
+    with Progress(
+        f"[bold]{description}",
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        transient=True,
+        redirect_stdout=False,
+        redirect_stderr=False,
+    ) as bar:
+        task = bar.add_task(description, total=None)
+
+        def advance(done: int, total: int) -> None:
+            bar.update(task, completed=done, total=total)
+
+        yield advance

@@ -67,6 +67,9 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         truth_path=args.truth,
         quiet=args.quiet,
         console=_console(),
+        consistency=args.consistency,
+        max_hypotheses=args.max_hypotheses,
+        strengthen_limit=args.strengthen_limit,
     )
 
 
@@ -132,6 +135,40 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 
 
 # --------------------------------------------------------------------------- parser
+def _add_solver_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--consistency",
+        choices=["hull", "lp"],
+        default="lp",
+        help="how hard to narrow: 'hull' = fixpoint of the narrowing operators (fastest); "
+        "'lp' = plus rounds of the rigorous polytope-hull operator (default, much tighter)",
+    )
+    p.add_argument(
+        "--max-hypotheses",
+        type=_positive_int,
+        default=10_000,
+        help="live correspondence hypotheses kept at most; beyond it the best-ranked are kept "
+        "and the result is marked incomplete (default %(default)s)",
+    )
+    p.add_argument(
+        "--strengthen-limit",
+        type=_positive_int,
+        default=100,
+        help="apply the --consistency level to at most this many surviving hypotheses "
+        "(default %(default)s)",
+    )
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="cuikslam",
@@ -162,6 +199,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--csv", help="write the boxes as CSV here")
     p.add_argument("--truth", help="ground-truth JSON: report whether every box contains it")
     p.add_argument("-q", "--quiet", action="store_true", help="print no table")
+    _add_solver_options(p)
     p.set_defaults(func=_cmd_solve)
 
     p = sub.add_parser(

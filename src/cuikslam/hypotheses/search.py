@@ -21,6 +21,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.graph.encoding import (
     N_SLOTS,
     NO_FACTOR,
@@ -261,6 +262,7 @@ class _Branch:
         """Narrow to the fixpoint from ``touched``; False when proven empty."""
         if touched.size == 0:
             return True
+        ensure_round_to_nearest()
         status, applications = propagate_arrays(
             self.lo,
             self.hi,

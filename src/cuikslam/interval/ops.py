@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from cuikslam._fpu import guarded
 from cuikslam._jit import gufunc
 from cuikslam.interval import _arith, _periodic
 
@@ -227,3 +228,4 @@ _DOCS = {
 }
 for _func, _doc in _DOCS.items():
     _func.__doc__ = _doc
+    globals()[_func.__name__] = guarded(_func)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.graph.encoding import KIND, OBSERVATION, ODOMETRY, TA, TB, XA, XB
 from cuikslam.narrowing._propagate import CONSISTENT, INCONSISTENT, propagate_arrays
 from cuikslam.narrowing.relaxation import tighten
@@ -81,6 +82,7 @@ def strengthen(
     Call it on boxes already at the fixpoint. Returns ``(status, operator applications)``
     with status CONSISTENT or INCONSISTENT (a proof).
     """
+    ensure_round_to_nearest()
     if level not in LEVELS:
         raise ValueError(f"unknown consistency level {level!r}; choose one of {', '.join(LEVELS)}")
     if level == "hull":

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.narrowing._propagate import (
     BUDGET_EXHAUSTED,
@@ -73,6 +74,7 @@ def propagate(
     max_applications : int
         Budget of operator applications.
     """
+    ensure_round_to_nearest()
     if lo is None or hi is None:
         lo, hi = graph.domains()
     else:

@@ -23,6 +23,7 @@ import numpy as np
 from scipy import sparse
 
 from cuikslam import interval as ia
+from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam._jit import jit
 from cuikslam.graph.encoding import (
     ANGLE,
@@ -273,6 +274,7 @@ def tighten(
     small). Returns new ``(lo, hi, feasible)``; ``feasible`` is False when the relaxation
     is proven empty (then the graph has no solution in the box).
     """
+    ensure_round_to_nearest()
     lo, hi = lo.copy(), hi.copy()
     slots = factors[:, 1:]
     used = np.unique(slots[slots >= 0])
