@@ -19,3 +19,13 @@ def _round_to_nearest() -> Iterator[None]:
     ensure_round_to_nearest()
     yield
     ensure_round_to_nearest()
+
+
+def pytest_collectstart(collector: pytest.Collector) -> None:
+    """Import every test module in round-to-nearest mode.
+
+    ``import codac`` alone switches the process to rounding upward; a test module imported
+    after that would parse its float literals in that mode (``-0.3927`` would become
+    ``-0.39270000000000005``).
+    """
+    ensure_round_to_nearest()

@@ -5,14 +5,61 @@ from __future__ import annotations
 import sys
 
 from rich.console import Console
+from rich.table import Table
 
 from cuikslam.cli._common import check_figure_path, check_output_path, write_output
 from cuikslam.results.io import write_result_file
 from cuikslam.results.table import comparison_table, hypothesis_rows, hypothesis_table
-from cuikslam.simulate.paper import paper_table1, simulate_paper
+from cuikslam.simulate.paper import PAPER_SURVIVORS, paper_table1, simulate_paper
 from cuikslam.solver import solve
 
 __all__ = ["run_paper"]
+
+
+def _unknown_correspondence(seed: int, console: Console) -> bool:
+    """The same experiment without landmark ids: the seed's Tables 2-6 question."""
+    from cuikslam.cli.solve import report_truth
+
+    log, truth = simulate_paper(seed=seed, unknown=True)
+    solution = solve(log)
+    stats = solution.statistics
+    table = Table(
+        title="Unknown correspondence: the robot cannot tell the doors (or the corridors) apart",
+        title_justify="left",
+    )
+    table.add_column("")
+    table.add_column("cuikslam", justify="right")
+    table.add_column("seed paper", justify="right")
+    table.add_row(
+        "surviving hypotheses", str(len(solution.hypotheses)), str(PAPER_SURVIVORS["hypotheses"])
+    )
+    pairs = PAPER_SURVIVORS["label_swapped_pairs"]
+    table.add_row(
+        "survivors that differ only in labels",
+        "0 (never created)",
+        f"{2 * pairs} ({pairs} pairs)",
+    )
+    fewest = min((h.n_landmarks for h in solution.hypotheses), default=0)
+    table.add_row("fewest landmarks among survivors", str(fewest), "4")
+    table.add_row(
+        "label-permuted duplicates avoided", str(stats.get("avoided_by_labelling", 0)), "—"
+    )
+    table.add_row("candidates rejected by the gate", str(stats.get("gated", 0)), "—")
+    table.add_row(
+        "hypotheses proven impossible",
+        str(
+            stats.get("proven_empty", 0)
+            + stats.get("refuted_by_negative_information", 0)
+            + stats.get("refuted_by_consistency", 0)
+        ),
+        "—",
+    )
+    table.add_row("search complete", "yes" if solution.complete else "NO", "—")
+    table.add_row("time", f"{solution.timings['solve_s']:.2f} s", "—")
+    console.print(table)
+    for message in solution.messages:
+        console.print(message)
+    return report_truth(solution, truth, console)
 
 
 def run_paper(*, seed: int, figure: str | None, json_path: str | None, console: Console) -> int:
@@ -49,6 +96,7 @@ def run_paper(*, seed: int, figure: str | None, json_path: str | None, console: 
         )
     )
     ok = report_truth(solution, truth, console)
+    ok &= _unknown_correspondence(seed, console)
     if json_path:
         write_output(json_path, lambda: write_result_file(solution, json_path))
     if figure:

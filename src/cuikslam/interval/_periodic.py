@@ -34,6 +34,14 @@ from cuikslam.interval._rounding import (
 
 # Beyond this magnitude an angle carries no usable phase in double precision.
 _PHASE_LIMIT = 1.0e12
+# The float shortcut for monotone pieces of sin and cos: below this magnitude the
+# quotient x / pi is within 1e-9 of its exact value, far inside the margin.
+_FAST_LIMIT = 1.0e6
+_FAST_MARGIN = 1.0e-6
+# periodic_meet's shortcut: X and A together narrower than this (well below 2 pi), and the
+# nearest copy's index at least this far from a tie
+_NARROW_PAIR = 5.0
+_K_MARGIN = 0.05
 
 
 @jit
@@ -67,8 +75,25 @@ def periodic_meet_k(
     if max(abs(alo), abs(ahi)) > _PHASE_LIMIT:
         # the copies' shifts 2 pi k would be too coarse (k steps by more than 1)
         return xlo, xhi, -INF, INF
-    k_start = math.floor((xlo - ahi) / TWO_PI_HI) - 1.0
-    k_stop = math.ceil((xhi - alo) / TWO_PI_LO) + 1.0
+    width_x = xhi - xlo
+    width_a = ahi - alo
+    if width_x + width_a < _NARROW_PAIR:
+        # both narrow: only the copy nearest to X can meet it (the others are more than
+        # pi - (width_x + width_a) / 2 away), unless the float rounding of the nearest k is
+        # in doubt, which the margin on the fractional part rules out
+        q = ((xlo + xhi) - (alo + ahi)) / (2.0 * TWO_PI_LO)
+        k = math.floor(q + 0.5)
+        if abs(q - k) < 0.5 - _K_MARGIN:
+            slo, shi = _shift_bounds(k)
+            lo = max(xlo, add_down(alo, slo))
+            hi = min(xhi, add_up(ahi, shi))
+            if lo > hi:
+                return EMPTY[0], EMPTY[1], 1.0, 0.0
+            return lo, hi, k, k
+    # floor/ceil of the float quotients never pass the true first/last k (error << 1);
+    # the scans below then find the exact first and last copies that meet X
+    k_start = math.floor((xlo - ahi) / TWO_PI_HI)
+    k_stop = math.ceil((xhi - alo) / TWO_PI_LO)
     k_first = k_start
     found = False
     while k_first <= min(k_stop, k_start + 8.0):
@@ -124,6 +149,23 @@ def _may_contain(xlo: float, xhi: float, alo: float, ahi: float) -> bool:
 
 
 @jit
+def _same_half_period(xlo: float, xhi: float, offset: float) -> bool:
+    """True when [xlo, xhi] surely lies inside one interval (k pi - offset, (k+1) pi - offset).
+
+    A float shortcut that only says True when a margin far larger than its rounding error
+    separates both ends from every multiple; otherwise the exact path decides.
+    """
+    if max(abs(xlo), abs(xhi)) > _FAST_LIMIT:
+        return False
+    qlo = (xlo + offset) / PI_LO
+    qhi = (xhi + offset) / PI_LO
+    klo = math.floor(qlo)
+    if klo != math.floor(qhi):
+        return False
+    return qlo - klo > _FAST_MARGIN and klo + 1.0 - qhi > _FAST_MARGIN
+
+
+@jit
 def cos(xlo: float, xhi: float) -> tuple[float, float]:
     if xlo > xhi:
         return EMPTY
@@ -131,6 +173,10 @@ def cos(xlo: float, xhi: float) -> tuple[float, float]:
         return -1.0, 1.0
     if max(abs(xlo), abs(xhi)) > _PHASE_LIMIT:
         return -1.0, 1.0
+    if _same_half_period(xlo, xhi, 0.0):
+        # cos is monotone between consecutive multiples of pi
+        a, b = math.cos(xlo), math.cos(xhi)
+        return max(-1.0, libm_down(min(a, b))), min(1.0, libm_up(max(a, b)))
     lo = -1.0 if _may_contain(xlo, xhi, PI_LO, PI_HI) else min(_cos_down(xlo), _cos_down(xhi))
     hi = 1.0 if _may_contain(xlo, xhi, 0.0, 0.0) else max(_cos_up(xlo), _cos_up(xhi))
     return lo, hi
@@ -144,12 +190,20 @@ def sin(xlo: float, xhi: float) -> tuple[float, float]:
         return -1.0, 1.0
     if max(abs(xlo), abs(xhi)) > _PHASE_LIMIT:
         return -1.0, 1.0
+    if _same_half_period(xlo, xhi, HALF_PI_LO):
+        # sin is monotone between consecutive odd multiples of pi/2
+        a, b = math.sin(xlo), math.sin(xhi)
+        return max(-1.0, libm_down(min(a, b))), min(1.0, libm_up(max(a, b)))
     lo = (
         -1.0
         if _may_contain(xlo, xhi, -HALF_PI_HI, -HALF_PI_LO)
         else min(_sin_down(xlo), _sin_down(xhi))
     )
-    hi = 1.0 if _may_contain(xlo, xhi, HALF_PI_LO, HALF_PI_HI) else max(_sin_up(xlo), _sin_up(xhi))
+    hi = (
+        1.0
+        if _may_contain(xlo, xhi, HALF_PI_LO, HALF_PI_HI)
+        else max(_sin_up(xlo), _sin_up(xhi))
+    )
     return lo, hi
 
 
@@ -261,6 +315,8 @@ def arg_contract(
     if xlo > xhi or ylo > yhi or plo > phi:
         return EMPTY[0], EMPTY[1], EMPTY[0], EMPTY[1], EMPTY[0], EMPTY[1]
     origin = xlo <= 0.0 <= xhi and ylo <= 0.0 <= yhi
+    if origin and not (phi - plo < TWO_PI_LO):
+        return xlo, xhi, ylo, yhi, plo, phi  # any angle, and the origin: nothing to narrow
     oxlo, oxhi, oylo, oyhi, oplo, ophi = (
         EMPTY[0], EMPTY[1], EMPTY[0], EMPTY[1], EMPTY[0], EMPTY[1],
     )  # fmt: skip

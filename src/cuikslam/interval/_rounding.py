@@ -3,7 +3,7 @@
 numba cannot switch the FPU rounding mode, so each result computed to nearest is moved
 outward afterwards. Sums use an error-free transformation (TwoSum) and stay exact when
 the float sum is exact (priors of width 0 stay width 0); products, quotients and square
-roots, correctly rounded by IEEE 754, move one ulp outward. Library transcendental
+roots, correctly rounded by IEEE 754, move outward by one or two ulps. Library transcendental
 functions (sin, cos, tan, asin, acos, atan2) are within 1 ulp on the platforms we
 support; we move them 2 ulp outward. ``tests/test_interval_rounding.py`` checks all of
 this against mpmath.
@@ -28,16 +28,27 @@ TWO_PI_LO = PI_LO * 2.0
 TWO_PI_HI = PI_HI * 2.0
 
 
+# One ulp of 1, and the smallest subnormal, written exactly (no arithmetic at import).
+_ULP_OF_ONE = float.fromhex("0x1p-52")
+_SMALLEST = float.fromhex("0x0.0000000000001p-1022")
+
+
 @jit
 def down(x: float) -> float:
-    """The next double below ``x``."""
-    return np.nextafter(x, -INF)
+    """A double below ``x``: its predecessor, or the one before (two multiplies and an add,
+    much cheaper than ``nextafter``). |x| * 2**-52 is at least one ulp of x, so the
+    difference rounds to a double strictly below x in any rounding mode."""
+    if x == INF:
+        return MAX
+    return x - max(abs(x) * _ULP_OF_ONE, _SMALLEST)
 
 
 @jit
 def up(x: float) -> float:
-    """The next double above ``x``."""
-    return np.nextafter(x, INF)
+    """A double above ``x``: its successor, or the one after (see :func:`down`)."""
+    if x == -INF:
+        return -MAX
+    return x + max(abs(x) * _ULP_OF_ONE, _SMALLEST)
 
 
 @jit

@@ -87,12 +87,15 @@ def polar_contract(
         if xlo > xhi or ylo > yhi:
             return _EMPTY8
         if rlo > 0.0:
+            # cos(phi) in x / rho, sin(phi) in y / rho: worth inverting only if they cut
             tlo, thi = div(xlo, xhi, rlo, rhi)
-            clo, chi = meet(clo, chi, tlo, thi)
-            plo, phi = bwd_cos(clo, chi, plo, phi)
+            if tlo > clo or thi < chi:
+                clo, chi = meet(clo, chi, tlo, thi)
+                plo, phi = bwd_cos(clo, chi, plo, phi)
             tlo, thi = div(ylo, yhi, rlo, rhi)
-            snlo, snhi = meet(snlo, snhi, tlo, thi)
-            plo, phi = bwd_sin(snlo, snhi, plo, phi)
+            if tlo > snlo or thi < snhi:
+                snlo, snhi = meet(snlo, snhi, tlo, thi)
+                plo, phi = bwd_sin(snlo, snhi, plo, phi)
             if plo > phi:
                 return _EMPTY8
         if not (

@@ -20,7 +20,7 @@ __all__ = ["DEFAULT_RTOL", "Propagation", "Status", "propagate"]
 
 DEFAULT_RTOL = 1e-3
 """A variable that shrinks by less than this fraction of its width wakes nobody."""
-DEFAULT_ROUNDS = 4
+DEFAULT_ROUNDS = 1
 """Repetitions of a factor's sub-operators per application (its local fixpoint)."""
 
 
