@@ -107,8 +107,9 @@ def main(argv: list[str] | None = None) -> int:
     paper = _in_process(_paper)
     print(f"seed paper, unknown correspondence, end to end: {paper['paper_seconds']:.2f} s "
           f"({paper['survivors']} survivors)")  # fmt: skip
-    print(f"{'poses':>6} {'lmks':>5} {'cls':>4} {'obs':>6} {'seconds':>8} {'cand.':>9} "
-          f"{'cand./s':>9} {'peak':>5} {'surv.':>5} {'complete':>8} {'truth':>5} {'RSS MB':>7}")  # fmt: skip
+    header = ("poses", "lmks", "cls", "obs", "seconds", "cand.", "cand./s", "peak", "surv.",
+              "complete", "truth", "RSS MB")  # fmt: skip
+    print(" ".join(f"{h:>8}" for h in header))
     for n_poses, n_landmarks, classes in WORLDS:
         if args.poses and n_poses not in args.poses:
             continue
@@ -119,8 +120,8 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(r)
         print(f"{r['poses']:>6} {r['landmarks']:>5} {r['classes']:>4} {r['observations']:>6} "
               f"{r['seconds']:>8.2f} {r['candidates']:>9} {r['candidates_per_s']:>9.0f} "
-              f"{r['peak_alive']:>5} {r['survivors']:>5} {str(r['complete']):>8} "
-              f"{str(r['true_hypothesis_kept']):>5} {r['peak_rss_mb']:>7.0f}")  # fmt: skip
+              f"{r['peak_alive']:>5} {r['survivors']:>5} {r['complete']!s:>8} "
+              f"{r['true_hypothesis_kept']!s:>5} {r['peak_rss_mb']:>7.0f}")  # fmt: skip
         sys.stdout.flush()
     if args.json:
         args.json.write_text(json.dumps({"paper": paper, "worlds": rows}, indent=1))

@@ -473,7 +473,9 @@ def test_simulate_random_then_solve_with_truth(tmp_path: Path) -> None:
     assert (tmp_path / "world.truth.json").is_file()
     result = run("solve", "world.jsonl", "--truth", "world.truth.json", cwd=tmp_path)
     assert result.returncode == 0, result.stdout + result.stderr
-    assert re.search(r"truth check: the true correspondence survived.* all contain the truth", result.stdout)
+    assert re.search(
+        r"truth check: the true correspondence survived.* all contain the truth", result.stdout
+    )
     assert "r 1" in result.stdout
 
 

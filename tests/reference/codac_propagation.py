@@ -18,8 +18,8 @@ from collections import deque
 import numpy as np
 from codac import CtcPolar, Interval
 
-from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.graph.encoding import OBSERVATION, ODOMETRY
+from cuikslam.graph.kinematic_graph import KinematicGraph
 
 __all__ = ["codac_propagate"]
 

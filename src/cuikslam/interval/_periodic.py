@@ -199,11 +199,7 @@ def sin(xlo: float, xhi: float) -> tuple[float, float]:
         if _may_contain(xlo, xhi, -HALF_PI_HI, -HALF_PI_LO)
         else min(_sin_down(xlo), _sin_down(xhi))
     )
-    hi = (
-        1.0
-        if _may_contain(xlo, xhi, HALF_PI_LO, HALF_PI_HI)
-        else max(_sin_up(xlo), _sin_up(xhi))
-    )
+    hi = 1.0 if _may_contain(xlo, xhi, HALF_PI_LO, HALF_PI_HI) else max(_sin_up(xlo), _sin_up(xhi))
     return lo, hi
 
 
