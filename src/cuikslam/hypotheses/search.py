@@ -279,10 +279,10 @@ class _Branch:
         return status != INCONSISTENT
 
     def box_size(self, pose_xs: np.ndarray) -> float:
-        cols = np.concatenate([pose_xs, pose_xs + 1, np.array(self.landmark_x, dtype=np.int64)])
-        cols = np.concatenate([cols, np.array(self.landmark_x, dtype=np.int64) + 1])
-        widths = self.hi[cols] - self.lo[cols]
-        return float(np.sum(np.where(np.isfinite(widths), widths, 1e9)))
+        """Sum of all pose (x, y, theta) and landmark widths, as :attr:`Hypothesis.box_size`."""
+        marks = np.array(self.landmark_x, dtype=np.int64)
+        cols = np.concatenate([pose_xs, pose_xs + 1, pose_xs + 2, marks, marks + 1])
+        return float(np.sum(self.hi[cols] - self.lo[cols]))
 
 
 class _Search:
@@ -333,10 +333,14 @@ class _Search:
                 self.stats.proven_empty += 1
         self.branches = survivors
 
-    def _narrow_and_propagate(self, first: int, bounds: list[tuple[float, float]]) -> None:
-        variables = list(range(first, first + len(bounds)))
+    def _narrow_and_propagate(
+        self, first: Callable[[_Branch], int], bounds: list[tuple[float, float]]
+    ) -> None:
+        """Intersect consecutive variables (from ``first(branch)``) with ``bounds``; propagate."""
 
         def apply(branch: _Branch) -> bool:
+            start = first(branch)
+            variables = list(range(start, start + len(bounds)))
             for v, (lo, hi) in zip(variables, bounds, strict=True):
                 branch.lo[v] = max(branch.lo[v], lo)
                 branch.hi[v] = min(branch.hi[v], hi)
@@ -346,30 +350,58 @@ class _Search:
 
         self._all(apply)
 
-    def _fixed_factor(self, index: int, row: tuple[int, ...]) -> None:
+    def _fixed_factor(self, index: int, row: Callable[[_Branch], tuple[int, ...]]) -> None:
+        """Add the factor of record ``index`` (its row may differ by branch) everywhere."""
         f = self.layout.record_factor[index]
         touched = np.array([f], dtype=np.int64)
 
         def apply(branch: _Branch) -> bool:
-            branch.add_factor(f, row)
+            branch.add_factor(f, row(branch))
             return branch.propagate(touched, self.rtol, self.stats)
 
         self._all(apply)
 
-    def _user_landmark(self, landmark: str, landmark_class: str) -> None:
-        """Give every branch the user's landmark ``landmark`` (named landmarks are shared)."""
-        survivors = []
+    def _name_landmark(self, landmark: str, landmark_class: str, pose: int | None) -> None:
+        """The user's landmark ``landmark`` appears: in each branch where it is not yet known,
+        it is one of the anonymous landmarks of its class, or a new one.
+
+        ``pose`` is the pose whose scan names it (anonymous landmarks that scan already saw
+        are excluded), or None for a landmark prior.
+        """
+        children = []
+        same_scan = self.observations_at.get(pose, []) if pose is not None else []
         for branch in self.branches:
-            if landmark not in branch.landmark_name:
-                branch.landmark_x.append(self.layout.user_landmark_x[landmark])
-                branch.landmark_class.append(landmark_class)
-                branch.landmark_name.append(landmark)
-                number = len(branch.landmark_x) - 1
-                if self.has_sensor and not self._add_unseen(branch, self.scan_done, [number]):
-                    self.stats.refuted_by_negative_information += 1
+            if landmark in branch.landmark_name:
+                children.append(branch)
+                continue
+            seen_here = {branch.assignment[self.observation_position[o]] for o in same_scan}
+            for number, (name, cls) in enumerate(
+                zip(branch.landmark_name, branch.landmark_class, strict=True)
+            ):
+                if name is not None or cls != landmark_class:
                     continue
-            survivors.append(branch)
-        self.branches = survivors
+                self.stats.candidates += 1
+                if number in seen_here:
+                    self.stats.excluded_same_scan += 1
+                    continue
+                child = branch.copy()
+                child.landmark_name[number] = landmark
+                self.stats.created += 1
+                children.append(child)
+            self.stats.candidates += 1
+            branch.landmark_x.append(self.layout.user_landmark_x[landmark])
+            branch.landmark_class.append(landmark_class)
+            branch.landmark_name.append(landmark)
+            number = len(branch.landmark_x) - 1
+            if self.has_sensor and not self._add_unseen(branch, self.scan_done, [number]):
+                self.stats.refuted_by_negative_information += 1
+                continue
+            children.append(branch)
+        self.branches = children
+
+    @staticmethod
+    def _landmark_x(branch: _Branch, landmark: str) -> int:
+        return branch.landmark_x[branch.landmark_name.index(landmark)]
 
     def _observation_row(self, index: int, record: Observation, landmark_x: int) -> tuple[int, ...]:
         a = self.layout.pose_x[record.pose]
@@ -536,25 +568,33 @@ class _Search:
         for index, record in enumerate(self.log.records):
             if isinstance(record, PosePrior):
                 x = self.layout.pose_x[record.pose]
-                self._narrow_and_propagate(x, [record.x, record.y, record.theta])
+                self._narrow_and_propagate(lambda _, x=x: x, [record.x, record.y, record.theta])
             elif isinstance(record, LandmarkPrior):
-                self._user_landmark(record.landmark, record.landmark_class)
-                x = self.layout.user_landmark_x[record.landmark]
-                self._narrow_and_propagate(x, [record.x, record.y])
+                name = record.landmark
+                self._name_landmark(name, record.landmark_class, None)
+                self._narrow_and_propagate(
+                    lambda b, name=name: self._landmark_x(b, name), [record.x, record.y]
+                )
             elif isinstance(record, Odometry):
                 a = self.layout.pose_x[record.source]
                 b = self.layout.pose_x[record.target]
                 m, n = self.layout.factor_measurements[self.layout.record_factor[index]]
-                self._fixed_factor(index, (ODOMETRY, a, a + 1, a + 2, b, b + 1, b + 2, m, n))
+                row = (ODOMETRY, a, a + 1, a + 2, b, b + 1, b + 2, m, n)
+                self._fixed_factor(index, lambda _, row=row: row)
             elif isinstance(record, Observation):
                 if record.landmark is None:
                     self._branch(index, record)
                 else:
-                    self._user_landmark(record.landmark, record.landmark_class)
-                    x = self.layout.user_landmark_x[record.landmark]
-                    self._fixed_factor(index, self._observation_row(index, record, x))
+                    name = record.landmark
+                    self._name_landmark(name, record.landmark_class, record.pose)
+                    self._fixed_factor(
+                        index,
+                        lambda b, name=name, record=record, index=index: self._observation_row(
+                            index, record, self._landmark_x(b, name)
+                        ),
+                    )
                     for branch in self.branches:
-                        branch.assignment.append(branch.landmark_name.index(record.landmark))
+                        branch.assignment.append(branch.landmark_name.index(name))
                 self.observation_position[index] = len(self.observation_position)
                 self.observations_at.setdefault(record.pose, []).append(index)
             completed = self.completes_after.get(index, [])

@@ -1,0 +1,190 @@
+"""The unknown-correspondence search: the true hypothesis always survives, nothing twice.
+
+Property-based: random ambiguous worlds (several landmarks per class, a loop, landmark
+re-observations, a range-limited sensor), random bounded errors. Whenever the search is
+complete, the true partition of the observations into landmarks must be among the
+survivors, and its boxes must contain the true poses and landmarks.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from cuikslam.hypotheses import solve_unknown
+from cuikslam.log.records import Log, Observation
+from cuikslam.results.solution import Solution, check_truth
+from cuikslam.simulate import simulate_paper, simulate_random_world
+from cuikslam.simulate.truth import GroundTruth
+
+
+def partition(assignment: list[str]) -> tuple[int, ...]:
+    first: dict[str, int] = {}
+    return tuple(first.setdefault(a, len(first)) for a in assignment)
+
+
+def true_survivor(solution: Solution, truth: GroundTruth) -> int:
+    """Index of the survivor with the true partition, or -1."""
+    target = partition(truth.assignment)
+    for i, h in enumerate(solution.hypotheses):
+        if partition(h.assignment) == target:
+            return i
+    return -1
+
+
+def assert_truth_inside(solution: Solution, truth: GroundTruth, index: int) -> None:
+    h = solution.hypotheses[index]
+    names = dict(zip(h.assignment, truth.assignment, strict=True))
+    landmark_xy = {ours: truth.landmark_xy(theirs) for ours, theirs in names.items()}
+    report = check_truth(h, truth.pose_ids, truth.poses_xyt, landmark_xy)
+    assert report.ok, report.misses[:5]
+
+
+worlds = st.fixed_dictionaries(
+    {
+        "seed": st.integers(0, 2**31 - 1),
+        "n_poses": st.integers(4, 16),
+        "n_landmarks": st.integers(2, 6),
+        "classes": st.sampled_from([("door",), ("door", "corridor"), ("a", "b", "c")]),
+        "max_range": st.floats(4.0, 9.0),
+    }
+)
+
+
+@settings(
+    max_examples=300,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow],
+    derandomize=True,
+)
+@given(worlds)
+def test_true_partition_survives_and_contains_truth(world: dict) -> None:
+    log, truth = simulate_random_world(
+        seed=world["seed"],
+        n_poses=world["n_poses"],
+        n_landmarks=world["n_landmarks"],
+        classes=world["classes"],
+        size=(16.0, 12.0),
+        max_range=world["max_range"],
+        step_length=(0.5, 1.5),
+        unknown=True,
+    )
+    solution = solve_unknown(log, consistency="hull", max_hypotheses=5_000)
+    if not solution.complete:
+        return  # the guarantee is about complete searches; incompleteness is reported
+    index = true_survivor(solution, truth)
+    assert index >= 0, "the true correspondence was discarded"
+    assert_truth_inside(solution, truth, index)
+    partitions = [partition(h.assignment) for h in solution.hypotheses]
+    assert len(set(partitions)) == len(partitions), "two survivors differ only in labels"
+
+
+def test_most_random_searches_complete() -> None:
+    """The guarantee test above must not pass vacuously: most small worlds finish."""
+    complete = 0
+    for seed in range(20):
+        log, _ = simulate_random_world(
+            seed=seed, n_poses=10, n_landmarks=4, size=(16.0, 12.0), unknown=True
+        )
+        complete += solve_unknown(log, consistency="hull", max_hypotheses=5_000).complete
+    assert complete >= 15
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_lp_level_keeps_the_truth_and_prunes_no_less(seed: int) -> None:
+    log, truth = simulate_random_world(
+        seed=seed, n_poses=10, n_landmarks=4, size=(16.0, 12.0), unknown=True
+    )
+    hull = solve_unknown(log, consistency="hull")
+    lp = solve_unknown(log, consistency="lp")
+    assert len(lp.hypotheses) <= len(hull.hypotheses)
+    index = true_survivor(lp, truth)
+    assert index >= 0
+    assert_truth_inside(lp, truth, index)
+    assert {partition(h.assignment) for h in lp.hypotheses} <= {
+        partition(h.assignment) for h in hull.hypotheses
+    }
+
+
+def test_paper_true_hypothesis_survives_ranked_first() -> None:
+    log, truth = simulate_paper(seed=0, unknown=True)
+    solution = solve_unknown(log, consistency="hull")
+    assert solution.complete
+    assert true_survivor(solution, truth) == 0  # fewest landmarks: the simplest explanation
+    assert solution.hypotheses[0].n_landmarks == 4
+    partitions = [partition(h.assignment) for h in solution.hypotheses]
+    assert len(set(partitions)) == len(partitions)
+    ranks = [(h.n_landmarks, h.box_size) for h in solution.hypotheses]
+    assert ranks == sorted(ranks)
+
+
+def test_one_scan_sees_distinct_landmarks() -> None:
+    log, _ = simulate_paper(seed=0, unknown=True)
+    solution = solve_unknown(log, consistency="hull")
+    poses = [o.pose for o in log.observations]
+    for h in solution.hypotheses:
+        seen: dict[int, set[str]] = {}
+        for pose, landmark in zip(poses, h.assignment, strict=True):
+            assert landmark not in seen.setdefault(pose, set())
+            seen[pose].add(landmark)
+
+
+def test_mixed_log_keeps_named_observations() -> None:
+    log, truth = simulate_paper(seed=0, unknown=False)
+    records = list(log.records)
+    observations = [i for i, r in enumerate(records) if isinstance(r, Observation)]
+    for i in observations[::2]:  # drop every other id
+        records[i] = dataclasses.replace(records[i], landmark=None)
+    mixed = Log(records, log.path)
+    solution = solve_unknown(mixed, consistency="hull")
+    named = [(k, o.landmark) for k, o in enumerate(mixed.observations) if o.landmark]
+    for h in solution.hypotheses:
+        for k, landmark in named:
+            assert h.assignment[k] == landmark
+    assert true_survivor(solution, truth) >= 0
+
+
+def test_limit_marks_the_result_incomplete() -> None:
+    log, _ = simulate_paper(seed=0, unknown=True)
+    solution = solve_unknown(log, consistency="hull", max_hypotheses=3)
+    assert not solution.complete
+    assert len(solution.hypotheses) <= 3
+    assert solution.statistics["dropped_by_limit"] > 0
+    assert any("INCOMPLETE" in m for m in solution.messages)
+
+
+def test_negative_information_refutes_a_duplicate_landmark() -> None:
+    """An all-round sensor of range 8 m saw one door at 2 m, then at 1 m.
+
+    A second door, unseen, within 8 m is impossible: only "the same door" survives.
+    """
+    lines = [
+        '{"type": "sensor", "max_range": 8.0}',
+        '{"type": "prior", "pose": 0, "x": [0, 0], "y": [0, 0], "theta": [0, 0]}',
+        '{"type": "observation", "pose": 0, "class": "door", "range": [1.99, 2.01], '
+        '"bearing": [-0.01, 0.01]}',
+        '{"type": "odometry", "from": 0, "to": 1, "turn": [-0.01, 0.01], "distance": [0.99, 1.01]}',
+        '{"type": "observation", "pose": 1, "class": "door", "range": [0.99, 1.01], '
+        '"bearing": [-0.01, 0.01]}',
+    ]
+    from cuikslam.log import parse_log_lines
+
+    solution = solve_unknown(parse_log_lines(lines), consistency="hull")
+    assert [h.assignment for h in solution.hypotheses] == [["L1", "L1"]]
+    assert solution.statistics["refuted_by_negative_information"] >= 1
+    without_sensor = solve_unknown(parse_log_lines(lines[1:]), consistency="hull")
+    assert len(without_sensor.hypotheses) == 2  # same door, or a new one
+
+
+def test_box_arrays_have_the_documented_layout() -> None:
+    log, _ = simulate_paper(seed=0, unknown=True)
+    h = solve_unknown(log, consistency="hull").hypotheses[0]
+    assert h.poses.shape == (9, 3, 2)
+    assert h.landmarks.shape == (h.n_landmarks, 2, 2)
+    assert np.all(h.poses[..., 0] <= h.poses[..., 1])
+    assert math.isfinite(h.box_size)
