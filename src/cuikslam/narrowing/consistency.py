@@ -27,8 +27,8 @@ LEVELS = ("hull", "lp")
 DEFAULT_LEVEL = "lp"
 WINDOW_POSES = 40
 """Poses per window of the polytope-hull operator (windows overlap by half)."""
-MAX_LP_ROUNDS = 10
-MIN_GAIN = 0.01
+MAX_LP_ROUNDS = 12
+MIN_GAIN = 0.005
 
 
 @dataclass

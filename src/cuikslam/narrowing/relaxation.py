@@ -42,6 +42,9 @@ from cuikslam.interval._rounding import TWO_PI_HI, TWO_PI_LO, add_down, add_up, 
 
 __all__ = ["LinearRelaxation", "relax", "tighten"]
 
+_CORNERS = ((0, 0), (1, 1), (0, 1), (1, 0))
+"""Corners (length side, angle side) the one-sided linearisations start from."""
+
 
 @dataclass
 class LinearRelaxation:
@@ -101,21 +104,22 @@ def _polar_rows(
 
 
 def _corner_rows(
-    length: np.ndarray, angles: list[np.ndarray], use_cos: bool, upper: bool
+    length: np.ndarray, angles: list[np.ndarray], use_cos: bool, length_side: int, angle_side: int
 ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """One-sided linear bounds of g = length * cos(sum(angles)) (or sin) from a box corner.
 
-    From the lower corner c every point has x - c >= 0, so with interval slopes S,
-    g(c) + S.lo (x - c) <= g(x) <= g(c) + S.hi (x - c): two rows without remainder. The
-    upper corner gives the mirror pair. Returns ``(a_length, a_angle, bounds)`` per row.
+    At the corner c (length at its ``length_side`` bound, every angle at its
+    ``angle_side`` bound; 0 = lower, 1 = upper) the sign of each x_j - c_j is known, so
+    with interval slopes S the mean-value theorem gives, without remainder,
+    g(x) >= g(c) + sum_j S_j.lo (x_j - c_j) where x_j - c_j >= 0 (S_j.hi where <= 0), and
+    the mirror upper bound. Returns ``(a_length, a_angle, bounds)`` for the two rows.
     """
-    side = 1 if upper else 0
-    corner_length = length[:, side]
+    corner_length = length[:, length_side]
     phi_box = angles[0]
-    phi_corner = _point(angles[0][:, side])
+    phi_corner = _point(angles[0][:, angle_side])
     for a in angles[1:]:
         phi_box = ia.add(phi_box, a)
-        phi_corner = ia.add(phi_corner, _point(a[:, side]))
+        phi_corner = ia.add(phi_corner, _point(a[:, angle_side]))
     trig, dtrig = (ia.cos, ia.sin) if use_cos else (ia.sin, ia.cos)
     value = ia.mul(_point(corner_length), trig(phi_corner))
     slope_length = trig(phi_box)
@@ -123,13 +127,13 @@ def _corner_rows(
     if use_cos:
         slope_angle = ia.neg(slope_angle)
     out = []
-    # the lower-bound row takes slope.lo at the lower corner and slope.hi at the upper one
-    for bound_side, pick in ((0, side), (1, 1 - side)):
-        a_len = slope_length[:, pick]
-        a_ang = slope_angle[:, pick]
+    # lower-bound row: slope.lo for a variable at its lower corner, slope.hi at its upper
+    for bound_side in (0, 1):
+        a_len = slope_length[:, length_side if bound_side == 0 else 1 - length_side]
+        a_ang = slope_angle[:, angle_side if bound_side == 0 else 1 - angle_side]
         constant = ia.sub(value, ia.mul(_point(a_len), _point(corner_length)))
         for a in angles:
-            constant = ia.sub(constant, ia.mul(_point(a_ang), _point(a[:, side])))
+            constant = ia.sub(constant, ia.mul(_point(a_ang), _point(a[:, angle_side])))
         bounds = np.full((len(a_len), 2), np.inf)
         bounds[:, 0] = -np.inf
         bounds[:, bound_side] = constant[:, bound_side]
@@ -175,8 +179,10 @@ def relax(
                 a_len, a_ang, k = _polar_rows(length[mask], boxes, use_cos)
                 linearisations = [(a_len, a_ang[0], k)]
                 if corners:
-                    for upper in (False, True):
-                        linearisations += _corner_rows(length[mask], boxes, use_cos, upper)
+                    for length_side, angle_side in _CORNERS:
+                        linearisations += _corner_rows(
+                            length[mask], boxes, use_cos, length_side, angle_side
+                        )
                 for a_len, a_ang, k in linearisations:
                     vals = np.column_stack(
                         [np.ones(mask.sum()), -np.ones(mask.sum()), -a_len]
