@@ -98,6 +98,8 @@ at least one representative of every angle."""
 _PIVOT_STEPS = (1e-9, 1e-7, 1e-5, 1e-3)
 """Half-widths tried for the pivots of the Poincaré–Miranda box."""
 _TWO_PI = ia.interval(TWO_PI_LO, TWO_PI_HI)
+_HOPELESS = 0.5
+"""A hinge residual (in half-widths) beyond which aiming closer to the bounds is not tried."""
 
 PoseBoxes = Mapping[int, np.ndarray] | np.ndarray | None
 LandmarkBoxes = Mapping[str, np.ndarray] | np.ndarray | None
@@ -1189,6 +1191,8 @@ def _solve_margins(
         if box is not None:
             return p, shortfall(p), box
         candidates.append(p)
+        if shortfall(p) > _HOPELESS:
+            break  # far outside some interval: smaller margins will not help
     box = _verified_box(model, candidates[0])
     best = candidates[0] if box is not None else min(candidates, key=shortfall)
     return best, shortfall(best), box
