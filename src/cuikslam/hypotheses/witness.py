@@ -72,7 +72,7 @@ from scipy.optimize import least_squares, minimize
 from cuikslam import interval as ia
 from cuikslam.interval._rounding import TWO_PI_HI, TWO_PI_LO
 from cuikslam.log.records import LandmarkPrior, Log, Observation, Odometry, PosePrior
-from cuikslam.results.solution import PROVEN, Solution
+from cuikslam.results.solution import NOT_REFUTED, PROVEN, Solution
 
 __all__ = [
     "AIM_FRACTION",
@@ -1268,9 +1268,10 @@ def certify(
     :func:`find_witness` (started from its boxes, then midpoints, then ``restarts`` random
     points) and :func:`verify_witness`; on success ``status`` becomes ``PROVEN`` and
     ``witness`` holds ``poses_xyt`` (rows in the hypothesis' ``pose_ids`` order) and
-    ``landmarks_xy`` (rows in its ``landmark_ids`` order). Other hypotheses keep their status
-    (``NOT_REFUTED``). A proven hypothesis takes well under a second; one that is not
-    proven costs every start (about 1 s for the paper's log).
+    ``landmarks_xy`` (rows in its ``landmark_ids`` order); otherwise they become (or stay)
+    ``NOT_REFUTED`` without a witness. Hypotheses beyond ``max_hypotheses`` are untouched.
+    A proven hypothesis takes well under a second; one that is not proven costs every
+    start (about 1 s for the paper's log).
     """
     start = time.perf_counter()
     proven = 0
@@ -1281,6 +1282,8 @@ def certify(
         landmarks_box = {lid: h.landmarks[k] for k, lid in enumerate(h.landmark_ids)}
         point, box = _find(model, poses_box, landmarks_box, seed, restarts=restarts)
         if point is None or box is None:
+            h.status = NOT_REFUTED
+            h.witness = None
             continue
         poses = np.full((len(h.pose_ids), 3), np.nan)
         for k, pid in enumerate(h.pose_ids):
@@ -1311,6 +1314,7 @@ def inner_hull(
     landmarks_box: LandmarkBoxes = None,
     *,
     n_random: int = 1,
+    refine: int = 2,
     seed: int = 0,
     margin: float = 1e-7,
     use_sensor: bool = True,
@@ -1321,11 +1325,17 @@ def inner_hull(
     For each coordinate, minimises and maximises it (SLSQP: checks as inequalities kept
     ``margin`` half-widths inside their intervals, closures as equalities, parameters within
     their intervals) from the witness and from ``n_random`` random starts (points of the
-    boxes, when given, else of the parameter intervals). A result counts only when
-    :func:`verify_witness` accepts it, else the largest step towards it from the witness
-    that verifies. Every verified point widens the hull of every coordinate, so the result
-    is the hull of proven solutions: inside the exact hull. Returns None when no witness is
-    found. Headings are unwrapped along the odometry tree from the anchor.
+    boxes, when given, else of the parameter intervals); then, against local optima, again
+    from the ``refine`` most extreme solution points found so far for that coordinate and
+    direction (other runs' optima are spread over the solution set's boundary). A result
+    counts only when :func:`verify_witness` accepts it, else the largest step towards it
+    from the witness that verifies. Every verified point widens the hull of every
+    coordinate, so the result is the hull of proven solutions: inside the exact hull.
+    Returns None when no witness is found. Headings are unwrapped along the odometry tree
+    from the anchor.
+
+    SLSQP calls BLAS on tiny matrices: set ``OPENBLAS_NUM_THREADS=1`` (before NumPy is
+    imported) or it may run ten times slower.
     """
     start_time = time.perf_counter()
     model = HypothesisModel(log, assignment, use_sensor=use_sensor)
@@ -1374,88 +1384,88 @@ def inner_hull(
         _, J = evaluated(z)
         return np.concatenate([J[low_side], -J[high_side]])
 
+    def eq(z: np.ndarray) -> np.ndarray:
+        return model.equalities(full(z))[0]
+
+    def eq_jac(z: np.ndarray) -> np.ndarray:
+        J = model.equalities(full(z), jacobian=True)[1]
+        assert J is not None
+        return J[:, free]
+
     constraints: list[dict[str, Any]] = [{"type": "ineq", "fun": ineq, "jac": ineq_jac}]
     if len(model.equality_rows):
-        constraints.append(
-            {
-                "type": "eq",
-                "fun": lambda z: model.equalities(full(z))[0],
-                "jac": lambda z: model.equalities(full(z), jacobian=True)[1][:, free],
-            }
-        )
+        constraints.append({"type": "eq", "fun": eq, "jac": eq_jac})
 
-    n_vars = 3 * model.n_poses + 2 * model.n_landmarks
-    w_vars = _variables(model, base)
-    hull_lo = w_vars.copy()
-    hull_hi = w_vars.copy()
-    verified = 1
+    n_pose_vars = 3 * model.n_poses
+    n_vars = n_pose_vars + 2 * model.n_landmarks
+    points: list[np.ndarray] = [base[free].copy()]
+    values: list[np.ndarray] = [_variables(model, base)]
     runs = 0
 
     def accept(p: np.ndarray) -> bool:
-        nonlocal verified
         if _verified_box(model, p) is None:
             return False
-        vals = _variables(model, p)
-        np.minimum(hull_lo, vals, out=hull_lo)
-        np.maximum(hull_hi, vals, out=hull_hi)
-        verified += 1
+        points.append(p[free].copy())
+        values.append(_variables(model, p))
         return True
 
-    starts = [base[free]]
-    for _ in range(n_random):
-        q = model.initial_params(None, landmarks_box, rng=rng)
-        if poses_box is not None:
-            centres = model._box_centres(poses_box, model.n_poses, 3, model._pose_index)
-            boxes = _box_array(model, poses_box)
-            if boxes is not None and centres is not None:
-                finite = np.isfinite(boxes).all(axis=-1)
-                pts = np.where(
-                    finite,
-                    rng.uniform(
-                        np.where(finite, boxes[..., 0], 0), np.where(finite, boxes[..., 1], 0)
-                    ),
-                    centres,
-                )
-                lm = _landmark_random(model, landmarks_box, rng, model.landmarks(q))
-                q = model.params_from_world(np.where(np.isnan(pts), 0.0, pts), lm)
-        starts.append(np.clip(q[free], np.where(np.isfinite(lb), lb, -np.inf), ub))
-
-    def objective_factory(index: int, sign: float):
+    def objective(index: int, sign: float) -> Any:
         def fun(z: np.ndarray) -> tuple[float, np.ndarray]:
             q = full(z)
-            if index < 3 * model.n_poses:
+            if index < n_pose_vars:
                 P, JP = model.poses(q, jacobian=True)
                 assert JP is not None
                 a, c = divmod(index, 3)
                 return sign * P[a, c], sign * JP[a, c, free]
-            k = model.landmark_param0 + index - 3 * model.n_poses
+            k = model.landmark_param0 + index - n_pose_vars
             g = np.zeros(model.n_params)
             g[k] = 1.0
             return sign * q[k], sign * g[free]
 
         return fun
 
+    def optimise(index: int, sign: float, z0: np.ndarray) -> None:
+        nonlocal runs
+        runs += 1
+        try:
+            res = minimize(
+                objective(index, sign), z0, jac=True, method="SLSQP", bounds=bounds,
+                constraints=constraints, options={"maxiter": max_iterations, "ftol": 1e-13},
+            )  # fmt: skip
+        except (ValueError, np.linalg.LinAlgError):
+            return
+        if not np.all(np.isfinite(res.x)):
+            return
+        p = full(res.x)
+        if accept(p):
+            return
+        for t in (1 - 1e-6, 1 - 1e-4, 1 - 1e-2, 0.9, 0.5):
+            if accept(base + t * (p - base)):
+                return
+
+    starts = [base[free]]
+    for _ in range(n_random):
+        starts.append(_random_start(model, poses_box, landmarks_box, rng)[free])
+    starts = [np.clip(z, np.where(np.isfinite(lb), lb, -np.inf), ub) for z in starts]
     for index in range(n_vars):
         for sign in (1.0, -1.0):
-            fun = objective_factory(index, sign)
             for z0 in starts:
-                runs += 1
-                try:
-                    res = minimize(
-                        fun, z0, jac=True, method="SLSQP", bounds=bounds,
-                        constraints=constraints,
-                        options={"maxiter": max_iterations, "ftol": 1e-13},
-                    )  # fmt: skip
-                except (ValueError, np.linalg.LinAlgError):
-                    continue
-                if not np.all(np.isfinite(res.x)):
-                    continue
-                p = full(res.x)
-                if accept(p):
-                    continue
-                for t in (1 - 1e-6, 1 - 1e-4, 1 - 1e-2, 0.9, 0.5):
-                    if accept(base + t * (p - base)):
+                optimise(index, sign, z0)
+    for _ in range(min(refine, 1)):
+        table = np.array(values)
+        for index in range(n_vars):
+            for sign in (1.0, -1.0):
+                order = np.argsort(sign * table[:, index], kind="stable")
+                tried: list[np.ndarray] = []
+                for k in order:
+                    if len(tried) >= refine:
                         break
+                    if any(np.array_equal(points[k], z) for z in tried):
+                        continue
+                    tried.append(points[k])
+                    optimise(index, sign, points[k])
+    table = np.array(values)
+    hull_lo, hull_hi = table.min(axis=0), table.max(axis=0)
     n = model.n_poses
     poses = np.stack([hull_lo[: 3 * n], hull_hi[: 3 * n]], axis=-1).reshape(n, 3, 2)
     landmarks = np.stack([hull_lo[3 * n :], hull_hi[3 * n :]], axis=-1).reshape(-1, 2, 2)
@@ -1464,11 +1474,30 @@ def inner_hull(
         poses=poses,
         landmark_ids=list(model.landmark_ids),
         landmarks=landmarks,
-        verified_points=verified,
+        verified_points=len(points),
         optimisations=runs,
         seconds=time.perf_counter() - start_time,
         witness=witness,
     )
+
+
+def _random_start(
+    model: HypothesisModel,
+    poses_box: PoseBoxes,
+    landmarks_box: LandmarkBoxes,
+    rng: np.random.Generator,
+) -> np.ndarray:
+    """Parameters of a random point of the boxes (random parameters where no box is given)."""
+    q = model.initial_params(None, landmarks_box, rng=rng)
+    boxes = _box_array(model, poses_box)
+    if boxes is None:
+        return q
+    finite = np.isfinite(boxes).all(axis=-1)
+    pts = rng.uniform(np.where(finite, boxes[..., 0], 0), np.where(finite, boxes[..., 1], 0))
+    P, _ = model.poses(q)
+    pts = np.where(finite, pts, P)
+    lm = _landmark_random(model, landmarks_box, rng, model.landmarks(q))
+    return model.params_from_world(pts, lm)
 
 
 def _box_array(model: HypothesisModel, poses_box: PoseBoxes) -> np.ndarray | None:

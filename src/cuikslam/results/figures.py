@@ -257,23 +257,7 @@ def _legend_handles(
         )
     if unbounded:
         handles.append(Line2D([], [], color="0.3", linestyle="--", label="unbounded (clipped)"))
-    if truth_poses:
-        handles.append(
-            Line2D([], [], color=TRUTH_COLOR, marker="o", markersize=3, label="true pose")
-        )
-    if truth_landmarks:
-        handles.append(
-            Line2D(
-                [],
-                [],
-                color=TRUTH_COLOR,
-                marker="x",
-                linestyle="none",
-                markersize=6,
-                markeredgewidth=1.5,
-                label="true landmark",
-            )
-        )
+    handles += _truth_handles(bool(truth_poses), bool(truth_landmarks))
     return handles
 
 
@@ -570,23 +554,7 @@ def plot_comparison_on_axes(
         tick = 0.8 * FAN_RADIUS * max(extent[1] - extent[0], extent[3] - extent[2])
         drawn = _draw_truth(ax, truth, tick, None, None)
         artists.update(drawn)
-        if drawn["truth_poses"]:
-            handles.append(
-                Line2D([], [], color=TRUTH_COLOR, marker="o", markersize=3, label="true pose")
-            )
-        if drawn["truth_landmarks"]:
-            handles.append(
-                Line2D(
-                    [],
-                    [],
-                    color=TRUTH_COLOR,
-                    marker="x",
-                    linestyle="none",
-                    markersize=6,
-                    markeredgewidth=1.5,
-                    label="true landmark",
-                )
-            )
+        handles += _truth_handles(bool(drawn["truth_poses"]), bool(drawn["truth_landmarks"]))
     if any_unbounded:
         handles.append(Line2D([], [], color="0.3", linestyle="--", label="unbounded (clipped)"))
     _finish_axes(ax, extent, title)
@@ -783,3 +751,20 @@ def _rgb(color: Any) -> tuple[float, float, float]:
     from matplotlib.colors import to_rgb
 
     return to_rgb(color)
+
+
+def _truth_handles(poses: bool, landmarks: bool) -> list:
+    """Legend entries for the truth markers that were drawn."""
+    from matplotlib.lines import Line2D
+
+    handles = []
+    if poses:
+        handles.append(
+            Line2D([], [], color=TRUTH_COLOR, marker="o", markersize=3, label="true pose")
+        )
+    if landmarks:
+        handles.append(
+            Line2D([], [], color=TRUTH_COLOR, marker="x", linestyle="none", markersize=6,
+                   markeredgewidth=1.5, label="true landmark")
+        )  # fmt: skip
+    return handles

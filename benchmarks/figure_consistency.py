@@ -1,0 +1,48 @@
+"""Figure for the README: the seed's experiment boxes at each consistency level and the inner hull.
+
+    python benchmarks/figure_consistency.py [--seed 0] [-o docs/consistency.png]
+
+The inner hull comes from ``benchmarks/results/inner_hull_paper.json`` (written by
+``bench_tightness.py``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from cuikslam.results.figures import plot_comparison_on_axes, save_figure  # noqa: E402
+from cuikslam.simulate import simulate_paper  # noqa: E402
+from cuikslam.solver import solve  # noqa: E402
+
+CACHE = Path(__file__).parent / "results" / "inner_hull_paper.json"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("-o", "--output", default="docs/consistency.png")
+    args = parser.parse_args(argv)
+    log, truth = simulate_paper(seed=args.seed)
+    boxes = {}
+    for level in ("hull", "lp"):
+        boxes[f"level '{level}'"] = solve(log, consistency=level).best.poses
+    inner = json.loads(CACHE.read_text())["seeds"][str(args.seed)]
+    boxes["inner hull (exact hull is between)"] = np.array(inner["poses"])
+    figure, ax = plt.subplots(figsize=(7.5, 7))
+    plot_comparison_on_axes(ax, boxes, truth, title=f"The seed's experiment (noise seed {args.seed})")
+    save_figure(figure, args.output)
+    print(f"wrote {args.output}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
