@@ -20,7 +20,7 @@ The inner hulls do not depend on the solver, so they are cached in
 re-runs with another ``--consistency`` level only solve. ``--recompute`` redoes them.
 
     python benchmarks/bench_tightness.py [--seeds 0 1 2 3 4] [--consistency LEVEL]
-        [--recompute] [--jobs 2] [--random-starts 2] [--json OUT]
+        [--recompute] [--jobs 2] [--random-starts 3] [--refine 3] [--json OUT] [--verbose]
 
 ``--consistency LEVEL`` is passed to :func:`cuikslam.solver.solve` when it takes that
 keyword; by default nothing is passed (the solver's default level).
@@ -80,7 +80,7 @@ def solve_kwargs(consistency: str | None) -> dict[str, Any]:
     return {"consistency": consistency}
 
 
-def compute_inner_hull(seed: int, random_starts: int = 2) -> dict[str, Any]:
+def compute_inner_hull(seed: int, random_starts: int = 3, refine: int = 3) -> dict[str, Any]:
     """The inner hull of paper seed ``seed`` (known correspondence), as a JSON-able dict.
 
     Starts come from the solver's boxes at its default level (truth-free); the hull itself
@@ -96,6 +96,7 @@ def compute_inner_hull(seed: int, random_starts: int = 2) -> dict[str, Any]:
     out = hull.to_json()
     out["fingerprint"] = log_fingerprint(log)
     out["random_starts"] = random_starts
+    out["refine"] = refine
     out["seconds_total"] = time.perf_counter() - start
     return out
 
@@ -179,7 +180,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--consistency", default=None, help="passed to solve() if it takes it")
     parser.add_argument("--recompute", action="store_true", help="recompute the inner hulls")
     parser.add_argument("--jobs", type=int, default=2, help="processes for the inner hulls")
-    parser.add_argument("--random-starts", type=int, default=2, help="random starts per run")
+    parser.add_argument("--random-starts", type=int, default=3, help="random starts per run")
+    parser.add_argument(
+        "--refine", type=int, default=3, help="restarts from the most extreme points found"
+    )
     parser.add_argument("--cache", type=Path, default=CACHE)
     parser.add_argument("--json", type=Path, default=None, help="write the figures here")
     parser.add_argument("--verbose", action="store_true", help="print every coordinate")
@@ -195,6 +199,7 @@ def main(argv: list[str] | None = None) -> int:
         or str(seed) not in cache
         or cache[str(seed)].get("fingerprint") != log_fingerprint(logs[seed])
         or cache[str(seed)].get("random_starts") != args.random_starts
+        or cache[str(seed)].get("refine") != args.refine
     ]
     if todo:
         print(f"inner hulls: computing seeds {todo} on {min(args.jobs, len(todo))} process(es)")
