@@ -29,6 +29,10 @@ WINDOW_POSES = 40
 """Poses per window of the polytope-hull operator (windows overlap by half)."""
 MAX_LP_ROUNDS = 12
 MIN_GAIN = 0.005
+"""Stop after a full round that shrinks the total width by less than this fraction."""
+FULL_ROUND_EVERY = 3
+ACTIVE_GAIN = 0.02
+"""Between full rounds, only variables that shrank by this fraction last round are re-solved."""
 
 
 @dataclass
@@ -94,9 +98,16 @@ def strengthen(
         return CONSISTENT, 0
     targets = np.unique(np.concatenate([t for _, t in windows]))
     width = _total_width(lo, hi, targets)
-    for _ in range(MAX_LP_ROUNDS):
+    active = np.ones(len(lo), dtype=bool)
+    for round_index in range(MAX_LP_ROUNDS):
+        before = hi - lo
+        if round_index % FULL_ROUND_EVERY == 0:
+            active[:] = True
         for rows, window_targets in windows:
-            new_lo, new_hi, feasible = tighten(rows, lo, hi, window_targets)
+            chosen = window_targets[active[window_targets]]
+            if chosen.size == 0:
+                continue
+            new_lo, new_hi, feasible = tighten(rows, lo, hi, chosen)
             if not feasible:
                 return INCONSISTENT, applications
             lo[:] = new_lo
@@ -117,7 +128,9 @@ def strengthen(
         if status == INCONSISTENT:
             return INCONSISTENT, applications
         new_width = _total_width(lo, hi, targets)
-        if new_width > width * (1.0 - MIN_GAIN):
+        if new_width > width * (1.0 - MIN_GAIN) and round_index % FULL_ROUND_EVERY == 0:
             break
         width = new_width
+        with np.errstate(invalid="ignore"):
+            active = (hi - lo) < before * (1.0 - ACTIVE_GAIN)
     return CONSISTENT, applications

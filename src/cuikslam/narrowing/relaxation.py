@@ -15,7 +15,9 @@ answer can only make a bound weaker, never unsound.
 
 from __future__ import annotations
 
+import functools
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import highspy
@@ -294,32 +296,55 @@ def tighten(
         return lo, hi, True
     box = np.stack([sub_lo, sub_hi], axis=-1)
     csc = relaxation.matrix.tocsc()
-    solver = _load(relaxation, csc, sub_lo, sub_hi)
-    previous = -1
-    for v in targets:
-        j = int(local[v])
-        if j < 0:
-            continue
-        for sense in (1.0, -1.0):
-            if previous >= 0:
-                solver.changeColCost(previous, 0.0)
-            solver.changeColCost(j, sense)
-            previous = j
-            solver.run()
-            if solver.getModelStatus() != highspy.HighsModelStatus.kOptimal:
-                continue  # no certificate: keep the box (sound)
-            objective = np.zeros(len(used))
-            objective[j] = sense
-            bound = _safe_lower_bound(
-                relaxation, csc, objective, solver.getSolution().row_dual, box
-            )
-            if sense > 0:
-                lo[v] = max(lo[v], bound)
-            else:
-                hi[v] = min(hi[v], -bound)
-            if lo[v] > hi[v]:
-                return lo, hi, False
+    columns = [int(local[v]) for v in targets if local[v] >= 0]
+    chosen = [int(v) for v in targets if local[v] >= 0]
+    # minima and maxima in two threads, each with its own HiGHS instance
+    futures = [
+        _pool().submit(_bounds, relaxation, csc, box, sub_lo, sub_hi, columns, sense)
+        for sense in (1.0, -1.0)
+    ]
+    lower, upper = (f.result() for f in futures)
+    for v, low, high in zip(chosen, lower, upper, strict=True):
+        lo[v] = max(lo[v], low)
+        hi[v] = min(hi[v], high)
+        if lo[v] > hi[v]:
+            return lo, hi, False
     return lo, hi, True
+
+
+@functools.cache
+def _pool() -> ThreadPoolExecutor:
+    return ThreadPoolExecutor(max_workers=2, thread_name_prefix="cuikslam-lp")
+
+
+def _bounds(
+    relaxation: LinearRelaxation,
+    csc: sparse.csc_matrix,
+    box: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    columns: list[int],
+    sense: float,
+) -> list[float]:
+    """Certified minima (sense 1) or maxima (sense -1) of the ``columns`` over the relaxation."""
+    ensure_round_to_nearest()  # the rounding mode is per thread
+    solver = _load(relaxation, csc, lo, hi)
+    out = []
+    previous = -1
+    for j in columns:
+        if previous >= 0:
+            solver.changeColCost(previous, 0.0)
+        solver.changeColCost(j, sense)
+        previous = j
+        solver.run()
+        if solver.getModelStatus() != highspy.HighsModelStatus.kOptimal:
+            out.append(-math.inf if sense > 0 else math.inf)  # no certificate: keep the box
+            continue
+        objective = np.zeros(len(lo))
+        objective[j] = sense
+        bound = _safe_lower_bound(relaxation, csc, objective, solver.getSolution().row_dual, box)
+        out.append(bound if sense > 0 else -bound)
+    return out
 
 
 def _load(
