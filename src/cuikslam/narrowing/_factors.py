@@ -25,10 +25,15 @@ from cuikslam.graph.encoding import (
 )
 from cuikslam.interval._arith import add, meet, sub
 from cuikslam.interval._periodic import periodic_meet
+from cuikslam.interval._rounding import INF
 from cuikslam.narrowing._polar import polar_contract, shrunk
 from cuikslam.narrowing._unseen import unseen_contract
 
 EMPTY_FACTOR = -1
+MEMORY_WIDTH = 6
+"""Auxiliary intervals remembered per factor: dx, dy, phi as (lo, hi) pairs."""
+NOT_AT_FIXPOINT = 1 << 8
+"""Mask bit: the factor still shrank in its last round (apply it again)."""
 
 
 @jit
@@ -58,15 +63,44 @@ def _rotate(
 
 
 @jit
+def fresh_memory(n_factors: int) -> np.ndarray:
+    """Per-factor memory of the auxiliary intervals (dx, dy, phi), all unbounded."""
+    memory = np.empty((n_factors, MEMORY_WIDTH))
+    memory[:, 0::2] = -INF
+    memory[:, 1::2] = INF
+    return memory
+
+
+@jit
 def narrow_factor(
     lo: np.ndarray, hi: np.ndarray, row: np.ndarray, rtol: float, max_rounds: int
 ) -> int:
+    """Apply the narrowing operator of one factor once, with no memory of earlier ones."""
+    return narrow_factor_memo(lo, hi, row, rtol, max_rounds, fresh_memory(1)[0])
+
+
+@jit
+def narrow_factor_memo(
+    lo: np.ndarray,
+    hi: np.ndarray,
+    row: np.ndarray,
+    rtol: float,
+    max_rounds: int,
+    memory: np.ndarray,
+) -> int:
     """Apply the narrowing operator of one factor to ``lo``/``hi`` in place.
+
+    ``memory`` holds this factor's auxiliary intervals from its earlier applications in
+    the same propagation: the offset (dx, dy) = (xb - xa, yb - ya) and, for observations,
+    phi = ta + bearing. The polar operator narrows them beyond what xb - xa recomputed
+    from the boxes gives, so keeping them makes repeated applications reach the polar
+    operator's own fixpoint. Each stays an enclosure of its true value, so this is sound.
 
     Repeats the factor's sub-operators until no variable shrinks by more than ``rtol``
     (at most ``max_rounds`` times). Returns a bit mask of the slots (bit s for column
-    s + 1) that shrank by more than ``rtol``, or ``EMPTY_FACTOR`` when the factor has no
-    solution in the box (then nothing is written).
+    s + 1) that shrank by more than ``rtol``, plus ``NOT_AT_FIXPOINT`` when the rounds ran
+    out while it still shrank, or ``EMPTY_FACTOR`` when the factor has no solution in the
+    box (then nothing is written).
     """
     kind = row[KIND]
     if kind == NO_FACTOR:
@@ -81,6 +115,7 @@ def narrow_factor(
     tblo, tbhi = 0.0, 0.0
     if kind == ODOMETRY:
         tblo, tbhi = lo[itb], hi[itb]
+    converged = False
     for _ in range(max_rounds):
         before = (xalo, xahi, yalo, yahi, talo, tahi, xblo, xbhi, yblo, ybhi, tblo, tbhi,
                   anglo, anghi, lenlo, lenhi)  # fmt: skip
@@ -91,13 +126,22 @@ def narrow_factor(
             plo, phi = tblo, tbhi
         else:
             plo, phi = add(talo, tahi, anglo, anghi)
+            plo, phi = meet(plo, phi, memory[4], memory[5])
         dxlo, dxhi = sub(xblo, xbhi, xalo, xahi)
+        dxlo, dxhi = meet(dxlo, dxhi, memory[0], memory[1])
         dylo, dyhi = sub(yblo, ybhi, yalo, yahi)
+        dylo, dyhi = meet(dylo, dyhi, memory[2], memory[3])
+        if dxlo > dxhi or dylo > dyhi or plo > phi:
+            return EMPTY_FACTOR
+        d_before = (dxlo, dxhi, dylo, dyhi)
         dxlo, dxhi, dylo, dyhi, lenlo, lenhi, plo, phi = polar_contract(
             dxlo, dxhi, dylo, dyhi, lenlo, lenhi, plo, phi, rtol, max_rounds
         )
         if dxlo > dxhi:
             return EMPTY_FACTOR
+        memory[0], memory[1], memory[2], memory[3] = dxlo, dxhi, dylo, dyhi
+        if kind != ODOMETRY:
+            memory[4], memory[5] = plo, phi
         xalo, xahi, xblo, xbhi = _translate(xalo, xahi, xblo, xbhi, dxlo, dxhi)
         yalo, yahi, yblo, ybhi = _translate(yalo, yahi, yblo, ybhi, dylo, dyhi)
         if kind == ODOMETRY:
@@ -121,9 +165,12 @@ def narrow_factor(
             or shrunk(before[10], before[11], tblo, tbhi, rtol)
             or shrunk(before[12], before[13], anglo, anghi, rtol)
             or shrunk(before[14], before[15], lenlo, lenhi, rtol)
+            or shrunk(d_before[0], d_before[1], dxlo, dxhi, rtol)
+            or shrunk(d_before[2], d_before[3], dylo, dyhi, rtol)
         ):
+            converged = True
             break
-    mask = 0
+    mask = 0 if converged else NOT_AT_FIXPOINT
     mask |= _store(lo, hi, ixa, xalo, xahi, rtol) << 0
     mask |= _store(lo, hi, iya, yalo, yahi, rtol) << 1
     mask |= _store(lo, hi, ita, talo, tahi, rtol) << 2

@@ -11,7 +11,12 @@ import numpy as np
 
 from cuikslam._jit import jit
 from cuikslam.graph.encoding import N_SLOTS
-from cuikslam.narrowing._factors import EMPTY_FACTOR, narrow_factor
+from cuikslam.narrowing._factors import (
+    EMPTY_FACTOR,
+    NOT_AT_FIXPOINT,
+    fresh_memory,
+    narrow_factor_memo,
+)
 
 CONSISTENT = 0
 INCONSISTENT = 1
@@ -51,6 +56,7 @@ def propagate_arrays(
             queue[(head_q + size) % capacity] = f
             size += 1
             queued[f] = True
+    memory = fresh_memory(n_factors)
     applications = 0
     while size > 0:
         if applications >= max_applications:
@@ -60,12 +66,17 @@ def propagate_arrays(
         size -= 1
         queued[f] = False
         row = factors[f]
-        mask = narrow_factor(lo, hi, row, rtol, max_rounds)
+        mask = narrow_factor_memo(lo, hi, row, rtol, max_rounds, memory[f])
         applications += 1
         if mask == EMPTY_FACTOR:
             return INCONSISTENT, applications
         if mask == 0:
             continue
+        if mask & NOT_AT_FIXPOINT and not queued[f]:
+            # one application is not idempotent at max_rounds: apply this factor again
+            queue[(head_q + size) % capacity] = f
+            size += 1
+            queued[f] = True
         for s in range(N_SLOTS):
             if (mask >> s) & 1 == 0:
                 continue

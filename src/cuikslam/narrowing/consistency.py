@@ -4,7 +4,10 @@
   boxes forget that consecutive poses are correlated, so they grow along the chain.
 - ``lp``: ``hull`` then rounds of the polytope-hull operator (:mod:`.relaxation`) over
   windows of consecutive poses, each followed by propagation, until a round shrinks the
-  boxes by less than 1 %. Correlation-aware, so it removes most of the wrapping effect.
+  boxes by less than 0.5 %. Correlation-aware, so it removes most of the wrapping effect.
+- ``lp-split``: ``lp``, then the widest headings are bisected one after the other; each
+  half is narrowed at level ``lp`` and the hull of the halves is kept. The linearisations
+  are tighter on half the heading interval. About four times the cost of ``lp``.
 
 Every level is sound: the boxes still contain every solution, and an empty result is a
 proof that the constraints have no solution.
@@ -23,7 +26,7 @@ from cuikslam.narrowing.relaxation import tighten
 
 __all__ = ["DEFAULT_LEVEL", "LEVELS", "Arrays", "strengthen"]
 
-LEVELS = ("hull", "lp")
+LEVELS = ("hull", "lp", "lp-split")
 DEFAULT_LEVEL = "lp"
 WINDOW_POSES = 40
 """Poses per window of the polytope-hull operator (windows overlap by half)."""
@@ -33,6 +36,8 @@ MIN_GAIN = 0.005
 FULL_ROUND_EVERY = 3
 ACTIVE_GAIN = 0.02
 """Between full rounds, only variables that shrank by this fraction last round are re-solved."""
+SPLIT_HEADINGS = 2
+"""Headings bisected by the ``lp-split`` level (the widest first)."""
 
 
 @dataclass
@@ -91,6 +96,51 @@ def strengthen(
         raise ValueError(f"unknown consistency level {level!r}; choose one of {', '.join(LEVELS)}")
     if level == "hull":
         return CONSISTENT, 0
+    status, applications = _polytope_rounds(arrays, lo, hi, rtol, max_rounds)
+    if status == INCONSISTENT or level == "lp":
+        return status, applications
+    headings = np.unique(arrays.factors[arrays.factors[:, KIND] == ODOMETRY][:, [TA, TB]])
+    for _ in range(SPLIT_HEADINGS):
+        widths = hi[headings] - lo[headings]
+        if headings.size == 0 or not np.isfinite(widths).any() or widths.max() <= 0:
+            break
+        v = headings[np.argmax(np.where(np.isfinite(widths), widths, -1.0))]
+        middle = 0.5 * (lo[v] + hi[v])
+        halves = []
+        for a, b in ((lo[v], middle), (middle, hi[v])):
+            half_lo, half_hi = lo.copy(), hi.copy()
+            half_lo[v], half_hi[v] = a, b
+            status, count = propagate_arrays(
+                half_lo, half_hi, arrays.factors, arrays.head, arrays.entry_factor,
+                arrays.entry_next, _factors_of(arrays, v), rtol,
+                max_rounds, 2**62,
+            )  # fmt: skip
+            applications += count
+            if status != INCONSISTENT:
+                status, count = _polytope_rounds(arrays, half_lo, half_hi, rtol, max_rounds)
+                applications += count
+            if status != INCONSISTENT:
+                halves.append((half_lo, half_hi))
+        if not halves:
+            return INCONSISTENT, applications
+        lo[:] = np.min([h[0] for h in halves], axis=0)
+        hi[:] = np.max([h[1] for h in halves], axis=0)
+    return CONSISTENT, applications
+
+
+def _factors_of(arrays: Arrays, variable: int) -> np.ndarray:
+    found = []
+    e = arrays.head[variable]
+    while e >= 0:
+        found.append(arrays.entry_factor[e])
+        e = arrays.entry_next[e]
+    return np.array(found, dtype=np.int64)
+
+
+def _polytope_rounds(
+    arrays: Arrays, lo: np.ndarray, hi: np.ndarray, rtol: float, max_rounds: int
+) -> tuple[int, int]:
+    """Rounds of the polytope-hull operator, each followed by propagation, until they stall."""
     everything = np.arange(arrays.factors.shape[0], dtype=np.int64)
     applications = 0
     windows = _windows(arrays.factors)
