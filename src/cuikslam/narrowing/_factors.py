@@ -126,7 +126,8 @@ def narrow_factor_memo(
             plo, phi = tblo, tbhi
         else:
             plo, phi = add(talo, tahi, anglo, anghi)
-            plo, phi = meet(plo, phi, memory[4], memory[5])
+            # congruence, not equality: ta may have taken another representative since
+            plo, phi = periodic_meet(plo, phi, memory[4], memory[5])
         dxlo, dxhi = sub(xblo, xbhi, xalo, xahi)
         dxlo, dxhi = meet(dxlo, dxhi, memory[0], memory[1])
         dylo, dyhi = sub(yblo, ybhi, yalo, yahi)
