@@ -33,7 +33,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     log, truth = simulate_paper(seed=args.seed)
     boxes = {}
-    for level in ("hull", "lp"):
+    for level in ("hull", "lp", "lp-split"):
         boxes[f"level '{level}'"] = solve(log, consistency=level).best.poses
     inner = json.loads(CACHE.read_text())["seeds"][str(args.seed)]
     boxes["inner hull (exact hull is between)"] = np.array(inner["poses"])
