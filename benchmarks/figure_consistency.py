@@ -16,12 +16,12 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from cuikslam.results.figures import plot_comparison_on_axes, save_figure  # noqa: E402
-from cuikslam.simulate import simulate_paper  # noqa: E402
-from cuikslam.solver import solve  # noqa: E402
+from cuikslam.results.figures import plot_comparison_on_axes, save_figure
+from cuikslam.simulate import simulate_paper
+from cuikslam.solver import solve
 
 CACHE = Path(__file__).parent / "results" / "inner_hull_paper.json"
 
@@ -38,7 +38,9 @@ def main(argv: list[str] | None = None) -> int:
     inner = json.loads(CACHE.read_text())["seeds"][str(args.seed)]
     boxes["inner hull (exact hull is between)"] = np.array(inner["poses"])
     figure, ax = plt.subplots(figsize=(7.5, 7))
-    plot_comparison_on_axes(ax, boxes, truth, title=f"The seed's experiment (noise seed {args.seed})")
+    plot_comparison_on_axes(
+        ax, boxes, truth, title=f"The seed's experiment (noise seed {args.seed})"
+    )
     save_figure(figure, args.output)
     print(f"wrote {args.output}", file=sys.stderr)
     return 0
