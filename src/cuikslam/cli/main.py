@@ -114,6 +114,29 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_import(args: argparse.Namespace) -> int:
+    from cuikslam.datasets import read_lost_in_the_woods
+    from cuikslam.log.writer import write_log_file
+    from cuikslam.simulate import write_truth_file
+
+    out = Path(args.output)
+    truth_out = _truth_path_for(out)
+    check_output_path(out)
+    check_output_path(truth_out)
+    log, truth = read_lost_in_the_woods(
+        args.file, start=args.start, steps=args.steps, stride=args.stride, unknown=not args.known
+    )
+    write_output(out, lambda: write_log_file(log, out))
+    write_output(truth_out, lambda: write_truth_file(truth, truth_out))
+    if not args.quiet:
+        print(
+            f"wrote {out} ({len(log.records)} records: {len(log.odometry)} odometry, "
+            f"{len(log.observations)} observations) and its ground truth {truth_out}",
+            file=sys.stderr,
+        )
+    return EXIT_OK
+
+
 def _cmd_plot(args: argparse.Namespace) -> int:
     from cuikslam.results.io import read_result_file
     from cuikslam.simulate.truth import read_truth_file
@@ -227,6 +250,21 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser(
+        "import",
+        help="convert a real dataset to a log and its ground truth",
+        description="Convert a window of a real dataset to a log and, beside it, NAME.truth.json.",
+    )
+    p.add_argument("dataset", choices=["lost-in-the-woods"], help="which dataset")
+    p.add_argument("file", help="the dataset file (lost-in-the-woods: dataset2.mat)")
+    p.add_argument("-o", "--output", required=True, help="log file to write (.jsonl)")
+    p.add_argument("--start", type=int, default=2770, help="first sample (default %(default)s)")
+    p.add_argument("--steps", type=_positive_int, default=450, help="samples (default %(default)s)")
+    p.add_argument("--stride", type=_positive_int, default=10, help="samples per pose (default 10)")
+    p.add_argument("--known", action="store_true", help="keep landmark ids (known correspondence)")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=_cmd_import)
 
     p = sub.add_parser("plot", help="draw a result JSON", description="Draw the boxes of a result.")
     p.add_argument("result", help="result JSON written by `cuikslam solve --json`")
