@@ -22,7 +22,13 @@ from cuikslam.hypotheses.search import (
 from cuikslam.hypotheses.witness import certify
 from cuikslam.log.records import Log
 from cuikslam.narrowing._propagate import INCONSISTENT
-from cuikslam.narrowing.consistency import DEFAULT_LEVEL, Arrays, strengthen
+from cuikslam.narrowing.consistency import (
+    AUTO_LP_POSES,
+    DEFAULT_LEVEL,
+    Arrays,
+    resolve_level,
+    strengthen,
+)
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, Status, propagate
 from cuikslam.results.solution import Hypothesis, Solution
 
@@ -32,6 +38,8 @@ ProgressCallback = Callable[[int, int], None]
 
 DEFAULT_CERTIFY_LIMIT = 1
 """Best-ranked hypotheses that get a verified witness (a failed search costs ~1 s)."""
+CERTIFY_MAX_POSES = 50
+"""No witness search beyond this many poses (it grows to tens of seconds at 100 poses)."""
 """Called with (done, total) as a long solve advances."""
 
 
@@ -68,6 +76,16 @@ def solve(
     searched and verified in interval arithmetic, making them *proven consistent*.
     """
     ensure_round_to_nearest()
+    n_poses = len(log.pose_ids)
+    chosen = resolve_level(consistency, n_poses)
+    notes = []
+    if consistency == "auto" and chosen == "hull":
+        notes.append(
+            f"consistency 'hull' chosen for {n_poses} poses (the 'lp' level is automatic up "
+            f"to {AUTO_LP_POSES}); ask for --consistency lp for boxes up to ~10x narrower, "
+            "at a cost of seconds to minutes"
+        )
+    consistency = chosen
     if log.has_unknown_correspondence:
         solution = solve_unknown(
             log,
@@ -79,6 +97,9 @@ def solve(
         )
     else:
         solution = _solve_known(log, consistency, rtol, progress)
+    solution.messages[:0] = notes
+    if n_poses > CERTIFY_MAX_POSES:
+        certify_limit = 0  # the witness search is a dense least-squares problem
     start = time.perf_counter()
     certify(log, replace(solution, hypotheses=solution.hypotheses[:certify_limit]))
     solution.timings["certify_s"] = time.perf_counter() - start

@@ -161,11 +161,12 @@ def _cmd_plot(args: argparse.Namespace) -> int:
 def _add_solver_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--consistency",
-        choices=["hull", "lp", "lp-split"],
-        default="lp",
+        choices=["auto", "hull", "lp", "lp-split"],
+        default="auto",
         help="how hard to narrow: 'hull' = fixpoint of the narrowing operators (fastest); "
-        "'lp' = plus rounds of the rigorous polytope-hull operator (default, much tighter); "
-        "'lp-split' = plus bisection of the widest headings (about 4x the time of 'lp')",
+        "'lp' = plus rounds of the rigorous polytope-hull operator (much tighter); "
+        "'lp-split' = plus bisection of the widest headings (about 3x the time of 'lp'); "
+        "'auto' (default) = 'lp' up to 50 poses, 'hull' beyond",
     )
     p.add_argument(
         "--max-hypotheses",

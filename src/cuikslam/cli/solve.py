@@ -98,7 +98,7 @@ def run_solve(
     truth_path: str | None,
     quiet: bool,
     console: Console,
-    consistency: str = "lp",
+    consistency: str = "auto",
     max_hypotheses: int = 10_000,
     strengthen_limit: int = 100,
 ) -> int:

@@ -40,7 +40,7 @@ from cuikslam.log.records import (
     PosePrior,
 )
 from cuikslam.narrowing._propagate import INCONSISTENT, propagate_arrays
-from cuikslam.narrowing.consistency import DEFAULT_LEVEL, Arrays, strengthen
+from cuikslam.narrowing.consistency import DEFAULT_LEVEL, Arrays, resolve_level, strengthen
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL
 from cuikslam.results.solution import Hypothesis, Solution
 
@@ -663,6 +663,7 @@ def solve_unknown(
     ``Solution.complete`` is False when ``max_hypotheses`` forced dropping some.
     """
     start = time.perf_counter()
+    consistency = resolve_level(consistency, len(log.pose_ids))
     search = _Search(log, rtol, max_hypotheses)
     search.run(progress)
     search.strengthen(consistency, strengthen_limit)

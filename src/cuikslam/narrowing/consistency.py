@@ -24,10 +24,12 @@ from cuikslam.graph.encoding import KIND, OBSERVATION, ODOMETRY, TA, TB, XA, XB
 from cuikslam.narrowing._propagate import CONSISTENT, INCONSISTENT, propagate_arrays
 from cuikslam.narrowing.relaxation import tighten
 
-__all__ = ["DEFAULT_LEVEL", "LEVELS", "Arrays", "strengthen"]
+__all__ = ["DEFAULT_LEVEL", "LEVELS", "Arrays", "resolve_level", "strengthen"]
 
 LEVELS = ("hull", "lp", "lp-split")
-DEFAULT_LEVEL = "lp"
+DEFAULT_LEVEL = "auto"
+"""``lp`` up to ``AUTO_LP_POSES`` poses, ``hull`` beyond (see :func:`resolve_level`)."""
+AUTO_LP_POSES = 50
 WINDOW_POSES = 40
 """Poses per window of the polytope-hull operator (windows overlap by half)."""
 MAX_LP_ROUNDS = 12
@@ -48,6 +50,19 @@ class Arrays:
     head: np.ndarray
     entry_factor: np.ndarray
     entry_next: np.ndarray
+
+
+def resolve_level(level: str, n_poses: int) -> str:
+    """The level to run: ``auto`` becomes ``lp`` up to ``AUTO_LP_POSES`` poses, else ``hull``.
+
+    The polytope-hull rounds cost about a second per window of 40 poses on the seed's
+    logs, but minutes on long logs dense with observations; ask for them explicitly there.
+    """
+    if level == "auto":
+        return "lp" if n_poses <= AUTO_LP_POSES else "hull"
+    if level not in LEVELS:
+        raise ValueError(f"unknown consistency level {level!r}; choose auto or one of {LEVELS}")
+    return level
 
 
 def _windows(factors: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
