@@ -74,8 +74,7 @@ def _cmd_solve(args: argparse.Namespace) -> int:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from cuikslam.log.writer import write_log_file
-    from cuikslam.simulate import simulate_paper, simulate_random_world, write_truth_file
+    from cuikslam.simulate import simulate_paper, simulate_random_world
 
     out = Path(args.output)
     truth_out = _truth_path_for(out)
@@ -103,21 +102,27 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     except ValueError as err:  # an impossible world (WorldSpec checks its parameters)
         problem = str(err).removeprefix("WorldSpec: ")
         raise CommandError(f"simulate {args.world}: {problem}") from None
+    _write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)
+    return EXIT_OK
+
+
+def _write_log_and_truth(log, truth, out: Path, truth_out: Path, *, quiet: bool) -> None:
+    """Write a log and its ground truth beside it (both atomically), and say so."""
+    from cuikslam.log.writer import write_log_file
+    from cuikslam.simulate import write_truth_file
+
     write_output(out, lambda: write_log_file(log, out))
     write_output(truth_out, lambda: write_truth_file(truth, truth_out))
-    if not args.quiet:
+    if not quiet:
         print(
             f"wrote {out} ({len(log.records)} records: {len(log.odometry)} odometry, "
             f"{len(log.observations)} observations) and its ground truth {truth_out}",
             file=sys.stderr,
         )
-    return EXIT_OK
 
 
 def _cmd_import(args: argparse.Namespace) -> int:
     from cuikslam.datasets import read_lost_in_the_woods
-    from cuikslam.log.writer import write_log_file
-    from cuikslam.simulate import write_truth_file
 
     out = Path(args.output)
     truth_out = _truth_path_for(out)
@@ -126,14 +131,7 @@ def _cmd_import(args: argparse.Namespace) -> int:
     log, truth = read_lost_in_the_woods(
         args.file, start=args.start, steps=args.steps, stride=args.stride, unknown=not args.known
     )
-    write_output(out, lambda: write_log_file(log, out))
-    write_output(truth_out, lambda: write_truth_file(truth, truth_out))
-    if not args.quiet:
-        print(
-            f"wrote {out} ({len(log.records)} records: {len(log.odometry)} odometry, "
-            f"{len(log.observations)} observations) and its ground truth {truth_out}",
-            file=sys.stderr,
-        )
+    _write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)
     return EXIT_OK
 
 
