@@ -14,6 +14,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from cuikslam.graph import KinematicGraph
+from cuikslam.graph.encoding import OBSERVATION, ODOMETRY
 from cuikslam.narrowing import propagate
 from cuikslam.narrowing.consistency import LEVELS
 from cuikslam.narrowing.relaxation import relax, tighten
@@ -95,7 +96,7 @@ def test_relaxation_rows_hold_at_the_truth(spec: dict) -> None:
     if not inside.all():
         return  # a non-angle variable, or an angle whose copy is ambiguous: skip this world
     relaxation = relax(graph.factor_table(), lo, hi)
-    rows = relaxation.matrix @ values
+    rows = relaxation.matrix @ relaxation.lift(values)
     slack = 1e-9 * (1 + np.abs(rows))
     assert np.all(relaxation.row_lo - slack <= rows)
     assert np.all(rows <= relaxation.row_hi + slack)
@@ -115,3 +116,54 @@ def test_lp_is_much_tighter_than_hull_on_the_paper(seed: int) -> None:
     assert np.all(w_lp <= w_hull + 1e-9)
     assert w_lp[:, :2].max() < 0.5 * w_hull[:, :2].max()
     assert check_truth(lp, truth.pose_ids, truth.poses_xyt).ok
+
+
+_ODOMETRY_ROW = [ODOMETRY, 0, 1, 2, 3, 4, 5, 6, 7]
+_OBSERVATION_ROW = [OBSERVATION, 0, 1, 2, 3, 4, -1, 5, 6]
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    observation=st.booleans(),
+    centre=st.floats(-1e4, 1e4),
+    widths=st.lists(st.floats(0.0, 7.0), min_size=2, max_size=2),
+    length=st.floats(0.0, 50.0),
+    length_width=st.floats(0.0, 5.0),
+    where=st.lists(st.floats(0.0, 1.0), min_size=3, max_size=3),
+)
+def test_every_relaxation_row_holds_at_every_point_of_the_box(
+    observation: bool,
+    centre: float,
+    widths: list[float],
+    length: float,
+    length_width: float,
+    where: list[float],
+) -> None:
+    """Any point of the box that satisfies the factor satisfies every row, lifted or not.
+
+    Wide and far-off angle boxes exercise the Taylor, secant and arc rows where the
+    curvature changes sign and where the rounding of large angles matters.
+    """
+    row = np.array([_OBSERVATION_ROW if observation else _ODOMETRY_ROW])
+    n = 7 if observation else 8
+    lo, hi = np.full(n, -100.0), np.full(n, 100.0)
+    angles = [2, 5] if observation else [5]
+    for var, w in zip(angles, widths, strict=False):
+        lo[var], hi[var] = centre - w / 2, centre + w / 2
+    lo[row[0, 8]], hi[row[0, 8]] = length, length + length_width
+    values = np.zeros(n)
+    for var, u in zip([*angles, row[0, 8]], where, strict=False):
+        values[var] = lo[var] + u * (hi[var] - lo[var])
+    phi = values[angles].sum()
+    ell = values[row[0, 8]]
+    values[3], values[4] = values[0] + ell * math.cos(phi), values[1] + ell * math.sin(phi)
+    if not ((lo <= values) & (values <= hi)).all():
+        return
+    relaxation = relax(row, lo, hi)
+    point = relaxation.lift(values)
+    assert relaxation.matrix.shape[1] == n + 2
+    rows = relaxation.matrix @ point
+    slack = 1e-9 * (1.0 + abs(relaxation.matrix) @ np.abs(point))
+    assert np.all(relaxation.row_lo - slack <= rows)
+    assert np.all(rows <= relaxation.row_hi + slack)
+    assert np.all(relaxation.col_lo <= point) and np.all(point <= relaxation.col_hi)

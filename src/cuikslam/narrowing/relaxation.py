@@ -2,10 +2,15 @@
 
 Hull consistency treats each factor alone and forgets that consecutive poses are
 correlated (the wrapping effect). This operator keeps the correlations: every factor's
-equations are replaced, over the current boxes, by linear inequalities that enclose them
-(a first-order expansion at the box centre plus a rigorously bounded remainder, the
-mean-value form in interval arithmetic). Each variable is then minimised and maximised
-over the resulting polytope with HiGHS.
+equations are replaced, over the current boxes, by linear inequalities that enclose them,
+and each variable is then minimised and maximised over the resulting polytope with HiGHS.
+
+A displacement ``d = length * cos(phi)`` is split at an auxiliary column ``t = cos(phi)``:
+``t`` is held between tangent and secant lines in ``phi`` (their offsets bounded by a
+second-order Taylor form in interval arithmetic), ``d`` by the McCormick envelope of the
+product ``length * t``, and the cos and sin columns of one heading by lines through the
+arc they lie on. Each piece is nearly exact on small boxes, which keeps the polytope
+within a few per cent of the solution set on the seed's experiment.
 
 The LP solver works in floating point, so its optimum is not trusted: each bound is
 re-derived from the LP's dual multipliers in interval arithmetic (Neumaier and
@@ -44,9 +49,6 @@ from cuikslam.interval._rounding import TWO_PI_HI, TWO_PI_LO, add_down, add_up, 
 
 __all__ = ["LinearRelaxation", "relax", "tighten"]
 
-_CORNERS = ((0, 0), (1, 1), (0, 1), (1, 0))
-"""Corners (length side, angle side) the one-sided linearisations start from."""
-
 
 @dataclass
 class LinearRelaxation:
@@ -55,170 +57,203 @@ class LinearRelaxation:
     matrix: sparse.csr_matrix
     row_lo: np.ndarray
     row_hi: np.ndarray
+    col_lo: np.ndarray
+    """Bounds of every column: the box, then the auxiliary trigonometric columns."""
+    col_hi: np.ndarray
+    aux_angles: np.ndarray
+    """Per auxiliary column, the one or two angle columns whose sum it is the cos/sin of."""
+    aux_is_cos: np.ndarray
+
+    def lift(self, values: np.ndarray) -> np.ndarray:
+        """A point of the box, extended with its auxiliary values (cos/sin of angle sums)."""
+        phi = values[self.aux_angles[:, 0]] + np.where(
+            self.aux_angles[:, 1] >= 0, values[self.aux_angles[:, 1]], 0.0
+        )
+        return np.concatenate([values, np.where(self.aux_is_cos, np.cos(phi), np.sin(phi))])
 
 
 def _point(v: np.ndarray) -> np.ndarray:
     return ia.interval(v, v)
 
 
-def _expansion(
-    coefficient: np.ndarray, box: np.ndarray, centre: np.ndarray, slope_box: np.ndarray
-) -> np.ndarray:
-    """Enclosure of (slope - coefficient) * (box - centre): one mean-value remainder term."""
-    return ia.mul(ia.sub(slope_box, _point(coefficient)), ia.sub(box, _point(centre)))
+def _trig_range_rows(phi: np.ndarray, use_cos: bool) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Ranged rows ``lo <= g(phi) - m * phi <= hi`` for g = cos (or sin) over the boxes ``phi``.
 
-
-def _polar_rows(
-    length: np.ndarray, angles: list[np.ndarray], use_cos: bool
-) -> tuple[np.ndarray, list[np.ndarray], np.ndarray]:
-    """Linearise g = length * cos(sum(angles)) (or sin) over the boxes.
-
-    Returns ``(a_length, a_angles, K)`` with g - a_length*length - sum(a_k * angle_k) in K
-    for every point of the boxes.
+    One row per slope m: the tangents at both ends and the middle, and the secant. The
+    range of h = g - m*phi is enclosed by a second-order Taylor form at the middle, and
+    on the side where h is concave (convex) by its end values, which are then exact.
+    Returns ``(m, bounds)`` per slope.
     """
-    centre_length = 0.5 * (length[:, 0] + length[:, 1])
-    centres = [0.5 * (a[:, 0] + a[:, 1]) for a in angles]
-    phi_box = angles[0]
-    phi_centre = _point(centres[0])
-    for a, c in zip(angles[1:], centres[1:], strict=True):
-        phi_box = ia.add(phi_box, a)
-        phi_centre = ia.add(phi_centre, _point(c))
-    trig, dtrig = (ia.cos, ia.sin) if use_cos else (ia.sin, ia.cos)
-    phi_mid = 0.5 * (phi_centre[:, 0] + phi_centre[:, 1])
-    # g = L cos(phi): dg/dL = cos(phi), dg/dphi = -L sin(phi); g = L sin(phi): sin, L cos
-    c_float = np.cos(phi_mid) if use_cos else np.sin(phi_mid)
-    d_float = -np.sin(phi_mid) if use_cos else np.cos(phi_mid)
-    sign = -1.0 if use_cos else 1.0
-    a_length = c_float
-    a_angle = centre_length * d_float
-    value_centre = ia.mul(_point(centre_length), trig(phi_centre))
-    slope_length = trig(phi_box)
-    slope_angle = ia.mul(length, dtrig(phi_box))
-    if sign < 0:
-        slope_angle = ia.neg(slope_angle)
-    constant = ia.sub(value_centre, ia.mul(_point(a_length), _point(centre_length)))
-    for c in centres:
-        constant = ia.sub(constant, ia.mul(_point(a_angle), _point(c)))
-    remainder = _expansion(a_length, length, centre_length, slope_length)
-    for a, c in zip(angles, centres, strict=True):
-        remainder = ia.add(remainder, _expansion(a_angle, a, c, slope_angle))
-    return a_length, [a_angle] * len(angles), ia.add(constant, remainder)
+    a, b = phi[:, 0], phi[:, 1]
+    middle = 0.5 * (a + b)
+    radius = np.nextafter(np.maximum(middle - a, b - middle), np.inf)
+    g, dg = (ia.cos, ia.sin) if use_cos else (ia.sin, ia.cos)
+    # g' = -sin for cos and cos for sin; g'' = -g
+    second = ia.neg(g(phi))
+    concave, convex = second[:, 1] <= 0.0, second[:, 0] >= 0.0
+    slope_at = (lambda x: -np.sin(x)) if use_cos else np.cos
+    with np.errstate(invalid="ignore", divide="ignore"):
+        secant = np.where(b > a, (g(_point(b))[:, 0] - g(_point(a))[:, 0]) / (b - a), 0.0)
+    secant = np.where(np.isfinite(secant), secant, slope_at(middle))
+    step = ia.interval(-radius, radius)
 
+    def h(x: np.ndarray, m: np.ndarray) -> np.ndarray:
+        return ia.sub(g(_point(x)), ia.mul(_point(m), _point(x)))
 
-def _corner_rows(
-    length: np.ndarray, angles: list[np.ndarray], use_cos: bool, length_side: int, angle_side: int
-) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """One-sided linear bounds of g = length * cos(sum(angles)) (or sin) from a box corner.
-
-    At the corner c (length at its ``length_side`` bound, every angle at its
-    ``angle_side`` bound; 0 = lower, 1 = upper) the sign of each x_j - c_j is known, so
-    with interval slopes S the mean-value theorem gives, without remainder,
-    g(x) >= g(c) + sum_j S_j.lo (x_j - c_j) where x_j - c_j >= 0 (S_j.hi where <= 0), and
-    the mirror upper bound. Returns ``(a_length, a_angle, bounds)`` for the two rows.
-    """
-    corner_length = length[:, length_side]
-    phi_box = angles[0]
-    phi_corner = _point(angles[0][:, angle_side])
-    for a in angles[1:]:
-        phi_box = ia.add(phi_box, a)
-        phi_corner = ia.add(phi_corner, _point(a[:, angle_side]))
-    trig, dtrig = (ia.cos, ia.sin) if use_cos else (ia.sin, ia.cos)
-    value = ia.mul(_point(corner_length), trig(phi_corner))
-    slope_length = trig(phi_box)
-    slope_angle = ia.mul(length, dtrig(phi_box))
+    derivative = dg(_point(middle))
     if use_cos:
-        slope_angle = ia.neg(slope_angle)
+        derivative = ia.neg(derivative)
+    curvature = ia.mul(second, ia.mul(_point(np.full_like(a, 0.5)), ia.sqr(step)))
     out = []
-    # lower-bound row: slope.lo for a variable at its lower corner, slope.hi at its upper
-    for bound_side in (0, 1):
-        a_len = slope_length[:, length_side if bound_side == 0 else 1 - length_side]
-        a_ang = slope_angle[:, angle_side if bound_side == 0 else 1 - angle_side]
-        constant = ia.sub(value, ia.mul(_point(a_len), _point(corner_length)))
-        for a in angles:
-            constant = ia.sub(constant, ia.mul(_point(a_ang), _point(a[:, angle_side])))
-        bounds = np.full((len(a_len), 2), np.inf)
-        bounds[:, 0] = -np.inf
-        bounds[:, bound_side] = constant[:, bound_side]
-        ok = np.isfinite(a_len) & np.isfinite(a_ang)
-        bounds[~ok] = (-np.inf, np.inf)
-        out.append((np.where(ok, a_len, 0.0), np.where(ok, a_ang, 0.0), bounds))
+    for m in (slope_at(a), slope_at(middle), slope_at(b), secant):
+        taylor = ia.add(
+            ia.add(h(middle, m), ia.mul(ia.sub(derivative, _point(m)), step)), curvature
+        )
+        ends_a, ends_b = h(a, m), h(b, m)
+        lower = np.where(
+            concave, np.maximum(taylor[:, 0], np.minimum(ends_a[:, 0], ends_b[:, 0])), taylor[:, 0]
+        )
+        upper = np.where(
+            convex, np.minimum(taylor[:, 1], np.maximum(ends_a[:, 1], ends_b[:, 1])), taylor[:, 1]
+        )
+        out.append((m, np.stack([lower, upper], axis=-1)))
     return out
 
 
-def relax(
-    factors: np.ndarray, lo: np.ndarray, hi: np.ndarray, corners: bool = True
-) -> LinearRelaxation:
+def _circle_rows(
+    phi: np.ndarray, cols: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Rows tying ``c = cos(phi)`` and ``s = sin(phi)`` (columns ``cols``) through the arc.
+
+    For a direction p, ``cos(p) c + sin(p) s = cos(phi - p)``, which lies between
+    cos(r) (r the farthest distance from p to the box, when r <= pi) and 1. The
+    coefficients are rounded, which moves the value by at most 2 ulp (|c|, |s| <= 1).
+    """
+    a, b = phi[:, 0], phi[:, 1]
+    middle = 0.5 * (a + b)
+    out = []
+    slack = 4.0 * np.finfo(float).eps
+    for p, r in (
+        (middle, np.nextafter(np.maximum(middle - a, b - middle), np.inf)),
+        (a, np.nextafter(b - a, np.inf)),
+        (b, np.nextafter(b - a, np.inf)),
+    ):
+        with np.errstate(invalid="ignore"):
+            lower = np.where(r <= 3.0, ia.cos(_point(np.minimum(r, 3.0)))[:, 0] - slack, -np.inf)
+        bounds = np.stack([lower, np.full_like(lower, 1.0 + slack)], axis=-1)
+        out.append((cols, np.column_stack([np.cos(p), np.sin(p)]), bounds))
+    return out
+
+
+def _product_rows(
+    length: np.ndarray, trig: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """McCormick rows for d = length * t over the boxes: ``d - a_len*length - a_t*t`` bounds.
+
+    Returns ``(a_len, a_t, bounds)`` for the four rows (two lower, two upper bounds).
+    """
+    out = []
+    for length_side, trig_side, bound_side in ((0, 0, 0), (1, 1, 0), (1, 0, 1), (0, 1, 1)):
+        a_len = trig[:, trig_side]
+        a_t = length[:, length_side]
+        constant = ia.neg(ia.mul(_point(a_t), _point(a_len)))
+        bounds = np.full((len(a_len), 2), np.inf)
+        bounds[:, 0] = -np.inf
+        bounds[:, bound_side] = constant[:, bound_side]
+        out.append((a_len, a_t, bounds))
+    return out
+
+
+def relax(factors: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> LinearRelaxation:
     """The linear relaxation of the odometry and observation factors over the box ``[lo, hi]``.
 
-    Factors touching an unbounded variable are left out (a relaxation may omit rows).
+    Columns are the box's variables, then one auxiliary column per factor for each of
+    cos(phi) and sin(phi) (see :meth:`LinearRelaxation.lift`). Factors touching an
+    unbounded variable are left out (a relaxation may omit rows).
     """
+    n = len(lo)
     box = np.stack([lo, hi], axis=-1)
     used = factors[np.isin(factors[:, KIND], (ODOMETRY, OBSERVATION))]
     slots = used[:, 1:]
     finite = np.all(np.isfinite(box[np.maximum(slots, 0)]).all(axis=-1) | (slots < 0), axis=1)
     used = used[finite]
     rows: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (cols, vals, bounds) per row set
-    n = len(used)
-    if n:
-        odo = used[:, KIND] == ODOMETRY
-        angle_vars = [used[:, TA], used[:, ANGLE]]
-        # the heading that drives the displacement: tb for odometry, ta + bearing otherwise
+    aux_boxes: list[np.ndarray] = []
+    aux_angles: list[np.ndarray] = []
+    aux_cos: list[np.ndarray] = []
+    odo = used[:, KIND] == ODOMETRY
+    # the heading that drives the displacement: tb for odometry, ta + bearing otherwise
+    for mask, angle_cols in ((odo, [used[:, TB]]), (~odo, [used[:, TA], used[:, ANGLE]])):
+        if not mask.any():
+            continue
+        count = int(mask.sum())
+        angle_cols = [c[mask] for c in angle_cols]
+        angles = [box[c] for c in angle_cols]
+        phi = angles[0] if len(angles) == 1 else ia.add(angles[0], angles[1])
+        lengths = used[mask, LENGTH]
+        length = box[lengths]
+        ones = np.ones(count)
         for use_cos, target_a, target_b in ((True, XA, XB), (False, YA, YB)):
-            length = box[used[:, LENGTH]]
-            ang_odo = [box[used[:, TB]]]
-            ang_obs = [box[angle_vars[0]], box[angle_vars[1]]]
-            for mask, angles, angle_cols in (
-                (odo, ang_odo, [used[:, TB]]),
-                (~odo, ang_obs, angle_vars),
-            ):
-                if not mask.any():
-                    continue
-                cols = np.column_stack(
-                    [used[mask, target_b], used[mask, target_a], used[mask, LENGTH]]
-                    + [c[mask] for c in angle_cols]
-                )
-                boxes = [a[mask] for a in angles]
-                a_len, a_ang, k = _polar_rows(length[mask], boxes, use_cos)
-                linearisations = [(a_len, a_ang[0], k)]
-                if corners:
-                    for length_side, angle_side in _CORNERS:
-                        linearisations += _corner_rows(
-                            length[mask], boxes, use_cos, length_side, angle_side
-                        )
-                for a_len, a_ang, k in linearisations:
-                    vals = np.column_stack(
-                        [np.ones(mask.sum()), -np.ones(mask.sum()), -a_len]
-                        + [-a_ang] * len(angle_cols)
-                    )
-                    rows.append((cols, vals, k))
-        if odo.any():
-            # tb - ta - turn = 2 pi k, when a single k fits the boxes
-            o = used[odo]
-            diff = ia.sub(ia.sub(box[o[:, TB]], box[o[:, TA]]), box[o[:, ANGLE]])
-            k_lo = np.ceil(diff[:, 0] / TWO_PI_HI - 1e-12)
-            k_hi = np.floor(diff[:, 1] / TWO_PI_LO + 1e-12)
-            single = k_lo == k_hi
-            k = k_lo[single]
-            shift = np.where(
-                k >= 0,
-                np.stack([k * TWO_PI_LO, k * TWO_PI_HI], axis=-1).T,
-                np.stack([k * TWO_PI_HI, k * TWO_PI_LO], axis=-1).T,
-            ).T
-            shift = ia.interval(
-                np.nextafter(shift[:, 0], -np.inf), np.nextafter(shift[:, 1], np.inf)
+            trig = ia.cos(phi) if use_cos else ia.sin(phi)
+            aux = n + sum(len(a) for a in aux_boxes) + np.arange(count)
+            aux_boxes.append(trig)
+            aux_angles.append(
+                np.column_stack(angle_cols + [np.full(count, -1)] * (2 - len(angle_cols)))
             )
-            cols = np.column_stack([o[single, TB], o[single, TA], o[single, ANGLE]])
-            vals = np.tile([1.0, -1.0, -1.0], (single.sum(), 1))
-            rows.append((cols, vals, shift))
+            aux_cos.append(np.full(count, use_cos))
+            trig_cols = np.column_stack([aux, *angle_cols])
+            for m, k in _trig_range_rows(phi, use_cos):
+                rows.append((trig_cols, np.column_stack([ones] + [-m] * len(angle_cols)), k))
+            product_cols = np.column_stack(
+                [used[mask, target_b], used[mask, target_a], lengths, aux]
+            )
+            for a_len, a_t, k in _product_rows(length, trig):
+                rows.append((product_cols, np.column_stack([ones, -ones, -a_len, -a_t]), k))
+        # the cos column of this group precedes its sin column by ``count``
+        rows.extend(_circle_rows(phi, np.column_stack([aux - count, aux])))
+    if odo.any():
+        rows.extend(_turn_rows(used[odo], box))
+    aux_box = np.concatenate(aux_boxes) if aux_boxes else np.zeros((0, 2))
+    width = n + len(aux_box)
+    col_lo = np.concatenate([lo, aux_box[:, 0]])
+    col_hi = np.concatenate([hi, aux_box[:, 1]])
+    aux_angle_cols = np.concatenate(aux_angles) if aux_angles else np.zeros((0, 2), np.int64)
+    aux_is_cos = np.concatenate(aux_cos) if aux_cos else np.zeros(0, bool)
     if not rows:
-        return LinearRelaxation(sparse.csr_matrix((0, len(lo))), np.zeros(0), np.zeros(0))
+        matrix = sparse.csr_matrix((0, width))
+        return LinearRelaxation(
+            matrix, np.zeros(0), np.zeros(0), col_lo, col_hi, aux_angle_cols, aux_is_cos
+        )
     cols = np.concatenate([r[0].ravel() for r in rows])
     vals = np.concatenate([r[1].ravel() for r in rows])
-    counts = [r[0].shape[1] for r in rows for _ in range(r[0].shape[0])]
+    counts = np.concatenate([np.full(r[0].shape[0], r[0].shape[1]) for r in rows])
     row_ids = np.repeat(np.arange(len(counts)), counts)
     bounds = np.concatenate([r[2] for r in rows])
-    matrix = sparse.csr_matrix((vals, (row_ids, cols)), shape=(len(counts), len(lo)))
-    return LinearRelaxation(matrix, bounds[:, 0], bounds[:, 1])
+    matrix = sparse.csr_matrix((vals, (row_ids, cols)), shape=(len(counts), width))
+    return LinearRelaxation(
+        matrix, bounds[:, 0], bounds[:, 1], col_lo, col_hi, aux_angle_cols, aux_is_cos
+    )
+
+
+def _turn_rows(
+    odometry: np.ndarray, box: np.ndarray
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """``tb - ta - turn = 2 pi k``, for the odometry factors where a single k fits the boxes."""
+    diff = ia.sub(ia.sub(box[odometry[:, TB]], box[odometry[:, TA]]), box[odometry[:, ANGLE]])
+    k_lo = np.ceil(diff[:, 0] / TWO_PI_HI - 1e-12)
+    k_hi = np.floor(diff[:, 1] / TWO_PI_LO + 1e-12)
+    single = k_lo == k_hi
+    k = k_lo[single]
+    shift = np.where(
+        k >= 0,
+        np.stack([k * TWO_PI_LO, k * TWO_PI_HI], axis=-1).T,
+        np.stack([k * TWO_PI_HI, k * TWO_PI_LO], axis=-1).T,
+    ).T
+    shift = ia.interval(np.nextafter(shift[:, 0], -np.inf), np.nextafter(shift[:, 1], np.inf))
+    o = odometry[single]
+    cols = np.column_stack([o[:, TB], o[:, TA], o[:, ANGLE]])
+    vals = np.tile([1.0, -1.0, -1.0], (single.sum(), 1))
+    return [(cols, vals, shift)]
 
 
 @jit
@@ -294,14 +329,13 @@ def tighten(
     relaxation = relax(local_factors, sub_lo, sub_hi)
     if relaxation.matrix.shape[0] == 0:
         return lo, hi, True
-    box = np.stack([sub_lo, sub_hi], axis=-1)
+    box = np.stack([relaxation.col_lo, relaxation.col_hi], axis=-1)
     csc = relaxation.matrix.tocsc()
     columns = [int(local[v]) for v in targets if local[v] >= 0]
     chosen = [int(v) for v in targets if local[v] >= 0]
     # minima and maxima in two threads, each with its own HiGHS instance
     futures = [
-        _pool().submit(_bounds, relaxation, csc, box, sub_lo, sub_hi, columns, sense)
-        for sense in (1.0, -1.0)
+        _pool().submit(_bounds, relaxation, csc, box, columns, sense) for sense in (1.0, -1.0)
     ]
     lower, upper = (f.result() for f in futures)
     for v, low, high in zip(chosen, lower, upper, strict=True):
@@ -321,14 +355,12 @@ def _bounds(
     relaxation: LinearRelaxation,
     csc: sparse.csc_matrix,
     box: np.ndarray,
-    lo: np.ndarray,
-    hi: np.ndarray,
     columns: list[int],
     sense: float,
 ) -> list[float]:
     """Certified minima (sense 1) or maxima (sense -1) of the ``columns`` over the relaxation."""
     ensure_round_to_nearest()  # the rounding mode is per thread
-    solver = _load(relaxation, csc, lo, hi)
+    solver = _load(relaxation, csc)
     out = []
     previous = -1
     for j in columns:
@@ -340,21 +372,20 @@ def _bounds(
         if solver.getModelStatus() != highspy.HighsModelStatus.kOptimal:
             out.append(-math.inf if sense > 0 else math.inf)  # no certificate: keep the box
             continue
-        objective = np.zeros(len(lo))
+        objective = np.zeros(len(box))
         objective[j] = sense
         bound = _safe_lower_bound(relaxation, csc, objective, solver.getSolution().row_dual, box)
         out.append(bound if sense > 0 else -bound)
     return out
 
 
-def _load(
-    relaxation: LinearRelaxation, csc: sparse.csc_matrix, lo: np.ndarray, hi: np.ndarray
-) -> highspy.Highs:
+def _load(relaxation: LinearRelaxation, csc: sparse.csc_matrix) -> highspy.Highs:
     solver = highspy.Highs()
     solver.setOptionValue("output_flag", False)
     solver.setOptionValue("presolve", "off")
     inf = highspy.kHighsInf
     model = highspy.HighsLp()
+    lo, hi = relaxation.col_lo, relaxation.col_hi
     model.num_col_ = len(lo)
     model.num_row_ = csc.shape[0]
     model.col_cost_ = np.zeros(len(lo))
