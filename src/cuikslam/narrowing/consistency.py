@@ -4,10 +4,12 @@
   boxes forget that consecutive poses are correlated, so they grow along the chain.
 - ``lp``: ``hull`` then rounds of the polytope-hull operator (:mod:`.relaxation`) over
   windows of consecutive poses, each followed by propagation, until a round shrinks the
-  boxes by less than 0.5 %. Correlation-aware, so it removes most of the wrapping effect.
+  boxes by less than 0.5 %. Correlation-aware, so it removes most of the wrapping effect:
+  within 1.32x of the exact hull on the seed's experiment, in about half a second.
 - ``lp-split``: ``lp``, then the widest headings are bisected one after the other; each
   half is narrowed at level ``lp`` and the hull of the halves is kept. The linearisations
-  are tighter on half the heading interval. About four times the cost of ``lp``.
+  are tighter on half the heading interval. About 3.5 times the cost of ``lp``, for
+  boxes within 1.16x of the exact hull on the seed's experiment.
 
 Every level is sound: the boxes still contain every solution, and an empty result is a
 proof that the constraints have no solution.
