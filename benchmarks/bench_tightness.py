@@ -90,7 +90,9 @@ def compute_inner_hull(seed: int, random_starts: int = 3, refine: int = 3) -> di
     assignment = [str(o.landmark) for o in log.observations]
     start = time.perf_counter()
     h = solve(log).best
-    hull = inner_hull(log, assignment, h.poses, h.landmarks, n_random=random_starts, seed=seed)
+    hull = inner_hull(
+        log, assignment, h.poses, h.landmarks, n_random=random_starts, refine=refine, seed=seed
+    )
     if hull is None:
         raise RuntimeError(f"seed {seed}: no verified witness; cannot measure the inner hull")
     out = hull.to_json()

@@ -1,13 +1,5 @@
-"""Certified consistency of a hypothesis: a witness point found numerically, verified rigorously.
+"""The forward-kinematics parametrisation of one hypothesis, and its checks in floating point.
 
-Narrowing can prove a hypothesis *impossible* (its boxes contract to empty) but never that
-it is *possible*. This module does the latter: it looks for one world (poses and landmarks)
-that satisfies every measured interval of the log under the hypothesis' assignment, with a
-local optimiser, and then verifies that point with the interval kernel
-(:mod:`cuikslam.interval`), so that a ``True`` answer is a proof.
-
-Parametrisation
----------------
 A candidate world is given by a parameter vector (:class:`HypothesisModel`):
 
 * the pose of an *anchor* ``(x, y, theta)``: the first prior pose (bounded by its prior
@@ -32,59 +24,22 @@ sensor is sure to see. A landmark is *visible* from a pose when it is within
 is set, the robot sees only the visible landmarks within ``nearest_margin`` of the nearest
 visible one. Observed landmarks must be seen, unobserved ones must not.
 
-Verification
-------------
-:func:`verify_witness` recomputes the poses with interval arithmetic from the parameter
-point (degenerate intervals ``[v, v]``, every operation rounded outward) and checks that
-every implied quantity lies *inside* its measured interval: plain inclusion for lengths and
-coordinates, inclusion modulo 2 pi for angles (the shift ``2 pi k`` is itself an enclosure).
-Bearings come from :func:`cuikslam.interval.angle_of` over a window wider than 2 pi, which
-encloses every representative of the true angle in the window, hence at least one.
-
-Loop-closing odometry is an equality, which a single point cannot satisfy exactly in
-floating point. It is verified with the Poincaré–Miranda theorem: one parameter per
-closure (its *pivot*) is widened to a small interval; if every inequality check holds over
-the whole parameter box and each closure's equality function has opposite strict signs on
-the two faces of its pivot, the box contains a point where every equality holds exactly,
-and that point satisfies every check. The returned witness is then the centre of that box
-(within ``1e-3`` of an exact solution, in the parameters). An odometry from a pose to
-itself needs no equality (it says turn ≡ 0 and distance = 0, both checked). Closures whose
-equality vanishes identically otherwise (a duplicated odometry record) or whose
-equalities are not independent cannot be verified this way: verification then fails,
-which only leaves the hypothesis ``NOT_REFUTED``.
-
-:func:`certify` runs both on every hypothesis of a :class:`~cuikslam.results.Solution`.
-:func:`inner_hull` uses the same machinery to measure the exact solution set from inside
-(every point it keeps is verified), to judge how tight the narrowed boxes are.
+The model evaluates all of this in floating point, with Jacobians, for the optimisers of
+:mod:`.find` and :mod:`.hull`, and gives them starting points; :mod:`.verify` re-does the
+forward kinematics in interval arithmetic from the same parameters.
 """
 
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares, minimize
+from scipy.optimize import least_squares
 
-from cuikslam import interval as ia
-from cuikslam.interval._rounding import TWO_PI_HI, TWO_PI_LO
 from cuikslam.log.records import LandmarkPrior, Log, Observation, Odometry, PosePrior
-from cuikslam.results.solution import NOT_REFUTED, PROVEN, Solution
-
-__all__ = [
-    "AIM_FRACTION",
-    "MIN_MARGIN",
-    "HypothesisModel",
-    "InnerHull",
-    "WitnessPoint",
-    "certify",
-    "find_witness",
-    "inner_hull",
-    "verify_witness",
-]
 
 AIM_FRACTION = 0.1
 """The optimiser aims this fraction of each interval's half-width inside it."""
@@ -92,21 +47,12 @@ MIN_MARGIN = 1e-9
 """...but at least this much (unless the interval is narrower)."""
 SENSOR_MARGIN = 1e-6
 """Aimed clearance (m, rad) from the sensor's visibility thresholds."""
-_WINDOW = 3.5
-"""Half-width of the angle window given to ``angle_of``: more than pi, so the window holds
-at least one representative of every angle."""
-_PIVOT_STEPS = (1e-9, 1e-7, 1e-5, 1e-3)
-"""Half-widths tried for the pivots of the Poincaré–Miranda box."""
-_TWO_PI = ia.interval(TWO_PI_LO, TWO_PI_HI)
-_HOPELESS = 0.5
-"""A hinge residual (in half-widths) beyond which aiming closer to the bounds is not tried."""
 
 PoseBoxes = Mapping[int, np.ndarray] | np.ndarray | None
 LandmarkBoxes = Mapping[str, np.ndarray] | np.ndarray | None
 
 
-# --------------------------------------------------------------------------- helpers
-def _aim_margin(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+def aim_margin(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """How far inside ``[lo, hi]`` the optimiser aims: 10 % of the half-width, >= 1e-9."""
     lo = np.asarray(lo, dtype=float)
     hi = np.asarray(hi, dtype=float)
@@ -121,38 +67,34 @@ def _wrap_near(value: np.ndarray, centre: np.ndarray) -> np.ndarray:
     return centre + np.remainder(value - centre + np.pi, 2 * np.pi) - np.pi
 
 
-def _inside(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """True where the interval ``x`` lies inside ``[lo, hi]`` (False for NaN or empty)."""
-    return (x[..., 0] >= lo) & (x[..., 1] <= hi) & (x[..., 0] <= x[..., 1])
-
-
-def _inside_mod(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """True where the angle interval ``x`` lies inside ``[lo, hi] + 2 pi k`` for one integer k.
-
-    The shift ``2 pi k`` is an outward-rounded enclosure, so a True is rigorous.
-    """
-    x = np.asarray(x, dtype=float)
-    lo = np.broadcast_to(np.asarray(lo, dtype=float), x.shape[:-1])
-    hi = np.broadcast_to(np.asarray(hi, dtype=float), x.shape[:-1])
-    width = ia.sub(ia.interval(hi), ia.interval(lo))[..., 0]
-    any_angle = width >= TWO_PI_HI
-    with np.errstate(invalid="ignore", over="ignore"):
-        k = np.round(((lo + hi) / 2.0 - (x[..., 0] + x[..., 1]) / 2.0) / (2 * math.pi))
-    k = np.where(np.isfinite(k), k, 0.0)
-    ok = np.zeros(x.shape[:-1], dtype=bool)
-    for step in (0.0, -1.0, 1.0):
-        shifted = ia.add(x, ia.mul(ia.interval(k + step), _TWO_PI))
-        ok |= _inside(shifted, lo, hi)
-    return (ok | any_angle) & (x[..., 0] <= x[..., 1])
-
-
 def _pair(bounds: tuple[float, float] | None) -> tuple[float, float]:
     if bounds is None:
         return (math.nan, math.nan)
     return (float(bounds[0]), float(bounds[1]))
 
 
-# --------------------------------------------------------------------------- results
+def _by_id(
+    values: Mapping[Any, Any] | np.ndarray, index: dict, shape: tuple[int, ...]
+) -> np.ndarray:
+    """``values`` (a mapping by id, or an array in the model's order) as an array of
+    ``shape``, rows in the model's order: NaN rows for ids not given, unknown ids ignored."""
+    if isinstance(values, Mapping):
+        out = np.full(shape, np.nan)
+        for key, v in values.items():
+            if key in index:
+                out[index[key]] = np.asarray(v, dtype=float)[: shape[1]]
+        return out
+    return np.asarray(values, dtype=float).reshape(shape)
+
+
+def _centres(boxes: np.ndarray | None) -> np.ndarray | None:
+    """Centres of boxes (..., 2), NaN where a bound is missing or infinite."""
+    if boxes is None:
+        return None
+    out = (boxes[..., 0] + boxes[..., 1]) / 2
+    return np.where(np.isfinite(out), out, np.nan)
+
+
 @dataclass
 class WitnessPoint:
     """A candidate solution: the parameter vector and the world it implies.
@@ -177,35 +119,6 @@ class WitnessPoint:
 
 
 @dataclass
-class InnerHull:
-    """Hull of verified solution points: an inner approximation of the exact hull.
-
-    ``poses`` has shape (n, 3, 2) and ``landmarks`` (m, 2, 2), last axis (min, max) found.
-    """
-
-    pose_ids: list[int]
-    poses: np.ndarray
-    landmark_ids: list[str]
-    landmarks: np.ndarray
-    verified_points: int
-    optimisations: int
-    seconds: float
-    witness: WitnessPoint | None = None
-    statistics: dict[str, Any] = field(default_factory=dict)
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "pose_ids": list(self.pose_ids),
-            "poses": self.poses.tolist(),
-            "landmark_ids": list(self.landmark_ids),
-            "landmarks": self.landmarks.tolist(),
-            "verified_points": self.verified_points,
-            "optimisations": self.optimisations,
-            "seconds": self.seconds,
-        }
-
-
-@dataclass
 class _Step:
     parent: int
     child: int
@@ -214,7 +127,6 @@ class _Step:
     forward: bool
 
 
-# --------------------------------------------------------------------------- the model
 class HypothesisModel:
     """The parametrisation of a hypothesis and its checks (see the module docstring).
 
@@ -408,7 +320,7 @@ class HypothesisModel:
         self.check_hi = bounds[:, 1].copy()
         self.check_angular = np.array(angular, dtype=bool)
         self.check_labels = labels
-        self.check_margin = _aim_margin(self.check_lo, self.check_hi)
+        self.check_margin = aim_margin(self.check_lo, self.check_hi)
         self.check_mid = np.where(
             np.isfinite(self.check_lo + self.check_hi), (self.check_lo + self.check_hi) / 2, 0.0
         )
@@ -687,36 +599,22 @@ class HypothesisModel:
         return p
 
     def _pose_array(self, poses: Mapping[int, np.ndarray] | np.ndarray) -> np.ndarray:
-        if isinstance(poses, Mapping):
-            out = np.full((self.n_poses, 3), np.nan)
-            for pid, v in poses.items():
-                if pid in self._pose_index:
-                    out[self._pose_index[pid]] = np.asarray(v, dtype=float)[:3]
-            return out
-        return np.asarray(poses, dtype=float).reshape(self.n_poses, 3)
+        return _by_id(poses, self._pose_index, (self.n_poses, 3))
 
     def _landmark_array(self, landmarks: Mapping[str, np.ndarray] | np.ndarray) -> np.ndarray:
-        if isinstance(landmarks, Mapping):
-            out = np.full((self.n_landmarks, 2), np.nan)
-            for lid, v in landmarks.items():
-                if lid in self._landmark_index:
-                    out[self._landmark_index[lid]] = np.asarray(v, dtype=float)[:2]
-            return out
-        return np.asarray(landmarks, dtype=float).reshape(self.n_landmarks, 2)
+        return _by_id(landmarks, self._landmark_index, (self.n_landmarks, 2))
 
-    def _box_centres(self, boxes: Any, n: int, k: int, index: dict) -> np.ndarray | None:
+    def pose_boxes(self, boxes: PoseBoxes) -> np.ndarray | None:
+        """Pose boxes as an array (n, 3, 2) in the model's order (NaN where not given)."""
         if boxes is None:
             return None
-        if isinstance(boxes, Mapping):
-            out = np.full((n, k), np.nan)
-            for key, box in boxes.items():
-                if key in index:
-                    b = np.asarray(box, dtype=float)
-                    out[index[key]] = (b[:k, 0] + b[:k, 1]) / 2
-        else:
-            b = np.asarray(boxes, dtype=float).reshape(n, k, 2)
-            out = (b[..., 0] + b[..., 1]) / 2
-        return np.where(np.isfinite(out), out, np.nan)
+        return _by_id(boxes, self._pose_index, (self.n_poses, 3, 2))
+
+    def landmark_boxes(self, boxes: LandmarkBoxes) -> np.ndarray | None:
+        """Landmark boxes as an array (m, 2, 2) in the model's order (NaN where not given)."""
+        if boxes is None:
+            return None
+        return _by_id(boxes, self._landmark_index, (self.n_landmarks, 2, 2))
 
     def initial_params(
         self,
@@ -731,7 +629,7 @@ class HypothesisModel:
         lo = np.where(finite, self.param_lo, 0.0)
         hi = np.where(finite, self.param_hi, 0.0)
         p = (lo + hi) / 2 if rng is None else rng.uniform(lo, hi)
-        pose_c = self._box_centres(poses_box, self.n_poses, 3, self._pose_index)
+        pose_c = _centres(self.pose_boxes(poses_box))
         if pose_c is not None and rng is None:
             q = self.params_from_world(
                 np.where(np.isnan(pose_c), 0.0, pose_c), np.zeros((self.n_landmarks, 2)), clip=True
@@ -739,7 +637,7 @@ class HypothesisModel:
             ok = self._params_known(pose_c)
             p = np.where(ok & np.isfinite(q), q, p)
         # anchors without a prior: the box centre or the origin
-        land = self._box_centres(landmarks_box, self.n_landmarks, 2, self._landmark_index)
+        land = _centres(self.landmark_boxes(landmarks_box))
         P, _ = self.poses(p)
         L = np.full((self.n_landmarks, 2), np.nan)
         for lo_, hi_, j, c in zip(*self._landmark_prior_rows(), strict=True):
@@ -806,13 +704,18 @@ class HypothesisModel:
                 best, best_cost = fit.x, fit.cost
         return np.asarray(best, dtype=float)
 
-    def _obs_half(self, q: int, kind: str) -> float | None:
+    def _obs_row(self, q: int, kind: str) -> int | None:
+        """The check row of observation ``q``'s ``"range"`` or ``"bearing"`` (None when it
+        is not measured)."""
         sel = self.range_sel if kind == "range" else self.bearing_sel
         pos = np.flatnonzero(sel == q)
         if len(pos) == 0:
             return None
-        row = int(pos[0]) + (0 if kind == "range" else len(self.range_sel))
-        return float((self.check_hi[row] - self.check_lo[row]) / 2)
+        return int(pos[0]) + (0 if kind == "range" else len(self.range_sel))
+
+    def _obs_half(self, q: int, kind: str) -> float | None:
+        row = self._obs_row(q, kind)
+        return None if row is None else float((self.check_hi[row] - self.check_lo[row]) / 2)
 
     def _landmark_prior_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         start = len(self.range_sel) + len(self.bearing_sel) + len(self.prior_pose)
@@ -836,12 +739,8 @@ class HypothesisModel:
         return ok
 
     def _obs_mid(self, q: int, kind: str) -> float | None:
-        sel = self.range_sel if kind == "range" else self.bearing_sel
-        pos = np.flatnonzero(sel == q)
-        if len(pos) == 0:
-            return None
-        row = int(pos[0]) + (0 if kind == "range" else len(self.range_sel))
-        return float((self.check_lo[row] + self.check_hi[row]) / 2)
+        row = self._obs_row(q, kind)
+        return None if row is None else float((self.check_lo[row] + self.check_hi[row]) / 2)
 
     def point(self, p: np.ndarray, residual: float = 0.0) -> WitnessPoint:
         """The :class:`WitnessPoint` of a parameter vector."""
@@ -906,627 +805,3 @@ class HypothesisModel:
         sign = np.where(below > 0, -1.0, 0.0) + np.where(above > 0, 1.0, 0.0)
         Jr = (sign / half)[:, None] * J
         return out, np.concatenate([Jr, Jf, Js])
-
-
-# --------------------------------------------------------------------------- verification
-def _interval_world(model: HypothesisModel, box: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Poses (n, 3, 2) and landmarks (m, 2, 2) enclosing the world of every parameter in the
-    parameter box ``box`` (n_params, 2), by outward-rounded forward kinematics."""
-    P = np.full((model.n_poses, 3, 2), np.nan)
-    for a, k in model.anchors:
-        P[a] = box[k : k + 3]
-    for st in model.steps:
-        parent = P[st.parent]
-        d = box[st.distance]
-        if st.forward:
-            th = ia.add(parent[2], box[st.turn])
-            c, s = ia.cos(th), ia.sin(th)
-            P[st.child, 0] = ia.add(parent[0], ia.mul(d, c))
-            P[st.child, 1] = ia.add(parent[1], ia.mul(d, s))
-            P[st.child, 2] = th
-        else:
-            c, s = ia.cos(parent[2]), ia.sin(parent[2])
-            P[st.child, 0] = ia.sub(parent[0], ia.mul(d, c))
-            P[st.child, 1] = ia.sub(parent[1], ia.mul(d, s))
-            P[st.child, 2] = ia.sub(parent[2], box[st.turn])
-    L = box[model.landmark_param0 :].reshape(-1, 2, 2)
-    return P, L
-
-
-def _angle_enclosure(dy: np.ndarray, dx: np.ndarray) -> np.ndarray:
-    """An enclosure of one representative of the angle of the vector (dx, dy).
-
-    ``angle_of`` encloses every representative inside a window; the window is centred on
-    the floating-point angle of the boxes' midpoints and is 7 wide, more than 2 pi, so it
-    holds at least one representative, and only one unless the boxes are wide.
-    """
-    centre = np.arctan2(_mid(dy), _mid(dx))
-    centre = np.where(np.isfinite(centre), centre, 0.0)
-    window = ia.interval(centre - _WINDOW, centre + _WINDOW)
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        return ia.angle_of(dy, dx, window)[2]
-
-
-def _mid(x: np.ndarray) -> np.ndarray:
-    with np.errstate(invalid="ignore", over="ignore"):
-        return (x[..., 0] + x[..., 1]) / 2
-
-
-def _checks_hold(model: HypothesisModel, box: np.ndarray) -> bool:
-    """Every inequality check holds for every parameter in ``box`` (rigorous)."""
-    if np.any(box[:, 0] < model.param_lo) or np.any(box[:, 1] > model.param_hi):
-        return False
-    if np.any(box[:, 0] > box[:, 1]):
-        return False
-    P, L = _interval_world(model, box)
-    lo, hi = model.check_lo, model.check_hi
-    pieces: list[np.ndarray] = []
-    i, j = model.obs_pose, model.obs_landmark
-    if len(i):
-        dx = ia.sub(L[j, 0], P[i, 0])
-        dy = ia.sub(L[j, 1], P[i, 1])
-        rng = ia.sqrt(ia.add(ia.sqr(dx), ia.sqr(dy)))
-        pieces.append(rng[model.range_sel])
-        b = model.bearing_sel
-        if len(b):
-            phi = _angle_enclosure(dy[b], dx[b])
-            pieces.append(ia.sub(phi, P[i[b], 2]))
-    pieces.append(P[model.prior_pose, model.prior_coord].reshape(-1, 2))
-    pieces.append(L[model.lprior_landmark, model.lprior_coord].reshape(-1, 2))
-    s_, t_ = model.closure_source, model.closure_target
-    if len(s_):
-        same = (s_ == t_)[:, None]  # an odometry into its own pose: no turn, no move
-        turn = np.where(same, 0.0, ia.sub(P[t_, 2], P[s_, 2]))
-        ddx = np.where(same, 0.0, ia.sub(P[t_, 0], P[s_, 0]))
-        ddy = np.where(same, 0.0, ia.sub(P[t_, 1], P[s_, 1]))
-        dist = ia.add(ia.mul(ddx, ia.cos(P[t_, 2])), ia.mul(ddy, ia.sin(P[t_, 2])))
-        pieces += [turn, dist]
-    values = np.concatenate([q.reshape(-1, 2) for q in pieces]) if pieces else np.zeros((0, 2))
-    if values.shape[0] != model.n_checks:
-        raise AssertionError("check layout mismatch")
-    ang = model.check_angular
-    ok_plain = _inside(values[~ang], lo[~ang], hi[~ang])
-    ok_ang = _inside_mod(values[ang], lo[ang], hi[ang])
-    if not (np.all(ok_plain) and np.all(ok_ang)):
-        return False
-    return _sensor_holds(model, P, L)
-
-
-def _sensor_holds(model: HypothesisModel, P: np.ndarray, L: np.ndarray) -> bool:
-    """Negative information (rigorous): at every pose the observed landmarks are exactly the
-    ones the sensor is sure to see."""
-    sensor = model.sensor
-    n, m = model.n_poses, model.n_landmarks
-    if sensor is None or n == 0 or m == 0:
-        return True
-    dx = ia.sub(L[None, :, 0], P[:, None, 0])
-    dy = ia.sub(L[None, :, 1], P[:, None, 1])
-    dist = ia.sqrt(ia.add(ia.sqr(dx), ia.sqr(dy)))
-    in_range = dist[..., 1] <= sensor.max_range
-    out_range = dist[..., 0] > sensor.max_range
-    if sensor.fov >= 2 * math.pi:
-        in_view = np.ones((n, m), dtype=bool)
-        out_view = np.zeros((n, m), dtype=bool)
-    else:
-        half = sensor.fov / 2.0
-        theta = np.broadcast_to(P[:, None, 2], (n, m, 2))
-        bearing = ia.sub(_angle_enclosure(dy, dx), theta)
-        in_view = _inside_mod(bearing, -half, half)
-        beyond = float(np.nextafter(half, math.inf))
-        before = float(np.nextafter(ia.sub(_TWO_PI, ia.interval(half))[0], -math.inf))
-        out_view = _inside_mod(bearing, beyond, before)
-    visible = in_range & in_view
-    hidden = out_range | out_view
-    if not np.all(visible | hidden):
-        return False
-    observed = model.observed
-    if sensor.nearest_margin is None:
-        return bool(np.all(np.where(observed, visible, hidden)))
-    margin = ia.interval(sensor.nearest_margin)
-    for a in range(n):
-        vis = visible[a]
-        if not np.any(vis):
-            if np.any(observed[a]):
-                return False
-            continue
-        nearest = np.array([dist[a, vis, 0].min(), dist[a, vis, 1].min()])
-        limit = ia.add(nearest, margin)
-        seen = vis & (dist[a, :, 1] <= limit[0])
-        unseen = hidden[a] | (dist[a, :, 0] > limit[1])
-        if not np.all(np.where(observed[a], seen, unseen)):
-            return False
-    return True
-
-
-def _equality_signs(model: HypothesisModel, box: np.ndarray) -> np.ndarray:
-    """Enclosures (e, 2) of the closure equalities over a parameter box."""
-    P, _ = _interval_world(model, box)
-    s_ = model.closure_source[model.equality_rows]
-    t_ = model.closure_target[model.equality_rows]
-    ddx = ia.sub(P[t_, 0], P[s_, 0])
-    ddy = ia.sub(P[t_, 1], P[s_, 1])
-    return ia.sub(ia.mul(ddx, ia.sin(P[t_, 2])), ia.mul(ddy, ia.cos(P[t_, 2])))
-
-
-def _pivots(model: HypothesisModel, p: np.ndarray) -> list[int] | None:
-    """One distinct free parameter per closure equality, greedily the most sensitive."""
-    _, J = model.equalities(p, jacobian=True)
-    assert J is not None
-    J = np.abs(J) * model.free[None, :]
-    chosen: list[int] = []
-    order = np.argsort(-J.max(axis=1)) if len(J) else []
-    pivots = [0] * len(J)
-    for c in order:
-        row = J[c].copy()
-        row[chosen] = 0.0
-        k = int(np.argmax(row))
-        if row[k] <= 0.0:
-            return None
-        chosen.append(k)
-        pivots[c] = k
-    return pivots
-
-
-def _verified_box(model: HypothesisModel, p: np.ndarray) -> np.ndarray | None:
-    """A parameter box around ``p`` proven to contain a solution, or None."""
-    if model.problems:
-        return None
-    p = np.asarray(p, dtype=float)
-    if p.shape != (model.n_params,) or not np.all(np.isfinite(p)):
-        return None
-    box = np.stack([p, p], axis=-1)
-    if len(model.equality_rows) == 0:
-        return box if _checks_hold(model, box) else None
-    pivots = _pivots(model, p)
-    if pivots is None:
-        return None
-    for step in _PIVOT_STEPS:
-        wide = box.copy()
-        for k in pivots:
-            wide[k] = (p[k] - step, p[k] + step)
-        if not _checks_hold(model, wide):
-            continue
-        ok = True
-        for c, k in enumerate(pivots):
-            low = wide.copy()
-            low[k] = (wide[k, 0], wide[k, 0])
-            high = wide.copy()
-            high[k] = (wide[k, 1], wide[k, 1])
-            f_low = _equality_signs(model, low)[c]
-            f_high = _equality_signs(model, high)[c]
-            if not ((f_low[1] < 0.0 < f_high[0]) or (f_high[1] < 0.0 < f_low[0])):
-                ok = False
-                break
-        if ok:
-            return wide
-    return None
-
-
-def verify_witness(
-    log: Log, assignment: Sequence[str], point: WitnessPoint | np.ndarray, use_sensor: bool = True
-) -> bool:
-    """Whether ``point`` (or a parameter vector) is proven to satisfy every check.
-
-    Rigorous: the decision rests on outward-rounded interval arithmetic only. With
-    loop-closing odometry, a True means that a small box around the point contains an
-    exact solution (Poincaré–Miranda; see the module docstring).
-    """
-    model = HypothesisModel(log, assignment, use_sensor=use_sensor)
-    params = point.params if isinstance(point, WitnessPoint) else point
-    return _verified_box(model, np.asarray(params, dtype=float)) is not None
-
-
-# --------------------------------------------------------------------------- search
-def _polish_equalities(model: HypothesisModel, p: np.ndarray, iterations: int = 4) -> np.ndarray:
-    """A few Gauss-Newton steps on the closure equalities (minimum-norm, free parameters)."""
-    if len(model.equality_rows) == 0:
-        return p
-    free = model.free
-    p = p.copy()
-    for _ in range(iterations):
-        f, J = model.equalities(p, jacobian=True)
-        assert J is not None
-        if np.max(np.abs(f)) < 1e-15:
-            break
-        step, *_ = np.linalg.lstsq(J[:, free], -f, rcond=None)
-        p[free] += step
-        p = np.clip(p, model.param_lo, model.param_hi)
-    return p
-
-
-def _solve_margins(
-    model: HypothesisModel, x0: np.ndarray, max_nfev: int = 200
-) -> tuple[np.ndarray, float, np.ndarray | None]:
-    """Least squares from ``x0``: the centre estimate, then the hinge residuals of the
-    aimed margins; returns (params, largest hinge residual, verified box or None)."""
-    free = model.free
-    margin = _aim_margin(model.param_lo, model.param_hi)
-    lb = np.where(np.isfinite(model.param_lo), model.param_lo + margin, -np.inf)[free]
-    ub = np.where(np.isfinite(model.param_hi), model.param_hi - margin, np.inf)[free]
-    fixed = x0.copy()
-
-    def full(z: np.ndarray) -> np.ndarray:
-        q = fixed.copy()
-        q[free] = z
-        return q
-
-    def least_squares_on(residuals: Any, z0: np.ndarray) -> np.ndarray:
-        memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-
-        def both(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            key = z.tobytes()
-            if key not in memo:
-                memo.clear()
-                r, J = residuals(full(z), jacobian=True)
-                memo[key] = (r, J[:, free])
-            return memo[key]
-
-        result = least_squares(
-            lambda z: both(z)[0], z0, jac=lambda z: both(z)[1], bounds=(lb, ub),
-            method="trf", xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=max_nfev,
-        )  # fmt: skip
-        return result.x
-
-    def shortfall(p: np.ndarray) -> float:
-        res = model.margin_residuals(p)[0]
-        return float(np.max(np.abs(res))) if len(res) else 0.0
-
-    z = np.clip(x0[free], lb, ub)
-    p = full(z)
-    if not np.any(free) or shortfall(p) == 0.0:
-        return p, shortfall(p), _verified_box(model, p)
-    # the least-squares estimate first (smooth, so it escapes the hinges' flat spots), then
-    # the margins from there; when the aimed margins do not fit together (a thin solution
-    # set), aim closer to the bounds
-    z = least_squares_on(model.centre_residuals, z)
-    candidates = [_polish_equalities(model, full(z))]
-    for scale in (1.0, 0.1, 0.01):
-
-        def hinge(q: np.ndarray, jacobian: bool, s: float = scale) -> Any:
-            return model.margin_residuals(q, jacobian, s)
-
-        z = least_squares_on(hinge, z)
-        p = _polish_equalities(model, full(z))
-        box = _verified_box(model, p)
-        if box is not None:
-            return p, shortfall(p), box
-        candidates.append(p)
-        if shortfall(p) > _HOPELESS:
-            break  # far outside some interval: smaller margins will not help
-    box = _verified_box(model, candidates[0])
-    best = candidates[0] if box is not None else min(candidates, key=shortfall)
-    return best, shortfall(best), box
-
-
-def _find(
-    model: HypothesisModel,
-    poses_box: PoseBoxes,
-    landmarks_box: LandmarkBoxes,
-    seed: int,
-    restarts: int,
-) -> tuple[WitnessPoint | None, np.ndarray | None]:
-    if model.problems:
-        return None, None
-    rng = np.random.default_rng(seed)
-    starts = []
-    if poses_box is not None or landmarks_box is not None:
-        starts.append(lambda: model.initial_params(poses_box, landmarks_box))
-    starts.append(lambda: model.initial_params())
-    for _ in range(restarts):
-        starts.append(lambda: model.initial_params(None, landmarks_box, rng=rng))
-    best: tuple[float, np.ndarray] | None = None
-    for start in starts:
-        p, residual, box = _solve_margins(model, start())
-        if box is not None:
-            return model.point(p, residual), box
-        if best is None or residual < best[0]:
-            best = (residual, p)
-    if best is not None and best[0] <= 1e-12:
-        return model.point(best[1], best[0]), None
-    return None, None
-
-
-def find_witness(
-    log: Log,
-    assignment: Sequence[str],
-    poses_box: PoseBoxes = None,
-    landmarks_box: LandmarkBoxes = None,
-    seed: int = 0,
-    *,
-    restarts: int = 3,
-    use_sensor: bool = True,
-) -> WitnessPoint | None:
-    """Look for a solution point of the hypothesis ``(log, assignment)``.
-
-    Minimises, over the parameters (within their intervals), how far each check falls short
-    of lying 10 % of its half-width inside its interval (at least 1e-9), plus the closure
-    equalities and the sensor's negative information. Starts from the centres of
-    ``poses_box`` / ``landmarks_box`` when given (mappings by id, or arrays in the kinematic
-    graph's order: a Hypothesis' ``poses`` / ``landmarks``), then from interval midpoints,
-    then from ``restarts`` random points (``numpy.random.default_rng(seed)``).
-
-    Returns the first point that :func:`verify_witness` accepts; failing that, a point that
-    meets every aimed margin in floating point (unverified), or None.
-    """
-    model = HypothesisModel(log, assignment, use_sensor=use_sensor)
-    point, _ = _find(model, poses_box, landmarks_box, seed, restarts)
-    return point
-
-
-def certify(
-    log: Log,
-    solution: Solution,
-    *,
-    seed: int = 0,
-    restarts: int = 2,
-    max_hypotheses: int | None = None,
-    use_sensor: bool = True,
-) -> None:
-    """Mark every hypothesis of ``solution`` whose consistency is proven.
-
-    For each hypothesis (the first ``max_hypotheses`` when given), the search of
-    :func:`find_witness` (started from its boxes, then midpoints, then ``restarts`` random
-    points) and :func:`verify_witness`; on success ``status`` becomes ``PROVEN`` and
-    ``witness`` holds ``poses_xyt`` (rows in the hypothesis' ``pose_ids`` order) and
-    ``landmarks_xy`` (rows in its ``landmark_ids`` order); otherwise they become (or stay)
-    ``NOT_REFUTED`` without a witness. Hypotheses beyond ``max_hypotheses`` are untouched.
-    A proven hypothesis takes well under a second; one that is not proven costs every
-    start (about 1 s for the paper's log).
-    """
-    start = time.perf_counter()
-    proven = 0
-    chosen = solution.hypotheses if max_hypotheses is None else solution.hypotheses[:max_hypotheses]
-    for h in chosen:
-        model = HypothesisModel(log, h.assignment, use_sensor=use_sensor)
-        poses_box = {pid: h.poses[k] for k, pid in enumerate(h.pose_ids)}
-        landmarks_box = {lid: h.landmarks[k] for k, lid in enumerate(h.landmark_ids)}
-        point, box = _find(model, poses_box, landmarks_box, seed, restarts=restarts)
-        if point is None or box is None:
-            h.status = NOT_REFUTED
-            h.witness = None
-            continue
-        poses = np.full((len(h.pose_ids), 3), np.nan)
-        for k, pid in enumerate(h.pose_ids):
-            if pid in point.pose_ids:
-                poses[k] = point.pose(pid)
-        landmarks = np.full((len(h.landmark_ids), 2), np.nan)
-        for k, lid in enumerate(h.landmark_ids):
-            if lid in point.landmark_ids:
-                landmarks[k] = point.landmark(lid)
-        h.status = PROVEN
-        h.witness = {"poses_xyt": poses, "landmarks_xy": landmarks}
-        proven += 1
-    solution.timings["certify_s"] = time.perf_counter() - start
-    solution.statistics["proven_hypotheses"] = proven
-
-
-# --------------------------------------------------------------------------- inner hull
-def _variables(model: HypothesisModel, p: np.ndarray) -> np.ndarray:
-    """All pose coordinates then all landmark coordinates, flat."""
-    P, _ = model.poses(p)
-    return np.concatenate([P.ravel(), model.landmarks(p).ravel()])
-
-
-def inner_hull(
-    log: Log,
-    assignment: Sequence[str],
-    poses_box: PoseBoxes = None,
-    landmarks_box: LandmarkBoxes = None,
-    *,
-    n_random: int = 2,
-    refine: int = 3,
-    seed: int = 0,
-    margin: float = 1e-7,
-    use_sensor: bool = True,
-    max_iterations: int = 200,
-) -> InnerHull | None:
-    """An inner approximation of the exact hull of every pose and landmark coordinate.
-
-    For each coordinate, minimises and maximises it (SLSQP: checks as inequalities kept
-    ``margin`` half-widths inside their intervals, closures as equalities, parameters within
-    their intervals) from the witness and from ``n_random`` random starts (points of the
-    boxes, when given, else of the parameter intervals); then, against local optima, again
-    from the ``refine`` most extreme solution points found so far for that coordinate and
-    direction (other runs' optima are spread over the solution set's boundary). A result
-    counts only when :func:`verify_witness` accepts it, else the largest step towards it
-    from the witness that verifies. Every verified point widens the hull of every
-    coordinate, so the result is the hull of proven solutions: inside the exact hull.
-    Returns None when no witness is found. Headings are unwrapped along the odometry tree
-    from the anchor.
-
-    SLSQP calls BLAS on tiny matrices: set ``OPENBLAS_NUM_THREADS=1`` (before NumPy is
-    imported) or it may run ten times slower.
-    """
-    start_time = time.perf_counter()
-    model = HypothesisModel(log, assignment, use_sensor=use_sensor)
-    witness, _box = _find(model, poses_box, landmarks_box, seed, restarts=3)
-    if witness is None or _box is None:
-        return None
-    rng = np.random.default_rng(seed)
-    free = model.free
-    lo_c, hi_c = model.check_lo, model.check_hi
-    half = np.where(np.isfinite(hi_c - lo_c), (hi_c - lo_c) / 2, 0.0)
-    low_side = np.isfinite(lo_c)
-    high_side = np.isfinite(hi_c)
-    pm = _aim_margin(model.param_lo, model.param_hi) * (margin / AIM_FRACTION)
-    lb = np.where(np.isfinite(model.param_lo), model.param_lo + pm, -np.inf)[free]
-    ub = np.where(np.isfinite(model.param_hi), model.param_hi - pm, np.inf)[free]
-    bounds = [
-        (a if np.isfinite(a) else None, b if np.isfinite(b) else None)
-        for a, b in zip(lb, ub, strict=True)
-    ]
-    base = witness.params.copy()
-
-    def full(z: np.ndarray) -> np.ndarray:
-        q = base.copy()
-        q[free] = z
-        return q
-
-    cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-
-    def evaluated(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        key = z.tobytes()
-        if key not in cache:
-            if len(cache) > 8:
-                cache.clear()
-            v, J = model.evaluate(full(z), jacobian=True)
-            assert J is not None
-            cache[key] = (v, J[:, free])
-        return cache[key]
-
-    def ineq(z: np.ndarray) -> np.ndarray:
-        v, _ = evaluated(z)
-        return np.concatenate(
-            [(v - lo_c - margin * half)[low_side], (hi_c - margin * half - v)[high_side]]
-        )
-
-    def ineq_jac(z: np.ndarray) -> np.ndarray:
-        _, J = evaluated(z)
-        return np.concatenate([J[low_side], -J[high_side]])
-
-    def eq(z: np.ndarray) -> np.ndarray:
-        return model.equalities(full(z))[0]
-
-    def eq_jac(z: np.ndarray) -> np.ndarray:
-        J = model.equalities(full(z), jacobian=True)[1]
-        assert J is not None
-        return J[:, free]
-
-    constraints: list[dict[str, Any]] = [{"type": "ineq", "fun": ineq, "jac": ineq_jac}]
-    if len(model.equality_rows):
-        constraints.append({"type": "eq", "fun": eq, "jac": eq_jac})
-
-    n_pose_vars = 3 * model.n_poses
-    n_vars = n_pose_vars + 2 * model.n_landmarks
-    points: list[np.ndarray] = [base[free].copy()]
-    values: list[np.ndarray] = [_variables(model, base)]
-    runs = 0
-
-    def accept(p: np.ndarray) -> bool:
-        if _verified_box(model, p) is None:
-            return False
-        points.append(p[free].copy())
-        values.append(_variables(model, p))
-        return True
-
-    def objective(index: int, sign: float) -> Any:
-        def fun(z: np.ndarray) -> tuple[float, np.ndarray]:
-            q = full(z)
-            if index < n_pose_vars:
-                P, JP = model.poses(q, jacobian=True)
-                assert JP is not None
-                a, c = divmod(index, 3)
-                return sign * P[a, c], sign * JP[a, c, free]
-            k = model.landmark_param0 + index - n_pose_vars
-            g = np.zeros(model.n_params)
-            g[k] = 1.0
-            return sign * q[k], sign * g[free]
-
-        return fun
-
-    def optimise(index: int, sign: float, z0: np.ndarray) -> None:
-        nonlocal runs
-        runs += 1
-        try:
-            res = minimize(
-                objective(index, sign), z0, jac=True, method="SLSQP", bounds=bounds,
-                constraints=constraints, options={"maxiter": max_iterations, "ftol": 1e-13},
-            )  # fmt: skip
-        except (ValueError, np.linalg.LinAlgError):
-            return
-        if not np.all(np.isfinite(res.x)):
-            return
-        p = full(res.x)
-        if accept(p):
-            return
-        for t in (1 - 1e-6, 1 - 1e-4, 1 - 1e-2, 0.9, 0.5):
-            if accept(base + t * (p - base)):
-                return
-
-    starts = [base[free]]
-    for _ in range(n_random):
-        starts.append(_random_start(model, poses_box, landmarks_box, rng)[free])
-    starts = [np.clip(z, np.where(np.isfinite(lb), lb, -np.inf), ub) for z in starts]
-    for index in range(n_vars):
-        for sign in (1.0, -1.0):
-            for z0 in starts:
-                optimise(index, sign, z0)
-    for _ in range(min(refine, 1)):
-        table = np.array(values)
-        for index in range(n_vars):
-            for sign in (1.0, -1.0):
-                order = np.argsort(sign * table[:, index], kind="stable")
-                tried: list[np.ndarray] = []
-                for k in order:
-                    if len(tried) >= refine:
-                        break
-                    if any(np.array_equal(points[k], z) for z in tried):
-                        continue
-                    tried.append(points[k])
-                    optimise(index, sign, points[k])
-    table = np.array(values)
-    hull_lo, hull_hi = table.min(axis=0), table.max(axis=0)
-    n = model.n_poses
-    poses = np.stack([hull_lo[: 3 * n], hull_hi[: 3 * n]], axis=-1).reshape(n, 3, 2)
-    landmarks = np.stack([hull_lo[3 * n :], hull_hi[3 * n :]], axis=-1).reshape(-1, 2, 2)
-    return InnerHull(
-        pose_ids=list(model.pose_ids),
-        poses=poses,
-        landmark_ids=list(model.landmark_ids),
-        landmarks=landmarks,
-        verified_points=len(points),
-        optimisations=runs,
-        seconds=time.perf_counter() - start_time,
-        witness=witness,
-    )
-
-
-def _random_start(
-    model: HypothesisModel,
-    poses_box: PoseBoxes,
-    landmarks_box: LandmarkBoxes,
-    rng: np.random.Generator,
-) -> np.ndarray:
-    """Parameters of a random point of the boxes (random parameters where no box is given)."""
-    q = model.initial_params(None, landmarks_box, rng=rng)
-    boxes = _box_array(model, poses_box)
-    if boxes is None:
-        return q
-    finite = np.isfinite(boxes).all(axis=-1)
-    pts = rng.uniform(np.where(finite, boxes[..., 0], 0), np.where(finite, boxes[..., 1], 0))
-    P, _ = model.poses(q)
-    pts = np.where(finite, pts, P)
-    lm = _landmark_random(model, landmarks_box, rng, model.landmarks(q))
-    return model.params_from_world(pts, lm)
-
-
-def _box_array(model: HypothesisModel, poses_box: PoseBoxes) -> np.ndarray | None:
-    if poses_box is None:
-        return None
-    if isinstance(poses_box, Mapping):
-        out = np.full((model.n_poses, 3, 2), np.nan)
-        for pid, box in poses_box.items():
-            if pid in model._pose_index:
-                out[model._pose_index[pid]] = np.asarray(box, dtype=float)[:3]
-        return out
-    return np.asarray(poses_box, dtype=float).reshape(model.n_poses, 3, 2)
-
-
-def _landmark_random(
-    model: HypothesisModel,
-    landmarks_box: LandmarkBoxes,
-    rng: np.random.Generator,
-    fallback: np.ndarray,
-) -> np.ndarray:
-    if landmarks_box is None:
-        return fallback
-    if isinstance(landmarks_box, Mapping):
-        boxes = np.full((model.n_landmarks, 2, 2), np.nan)
-        for lid, box in landmarks_box.items():
-            if lid in model._landmark_index:
-                boxes[model._landmark_index[lid]] = np.asarray(box, dtype=float)[:2]
-    else:
-        boxes = np.asarray(landmarks_box, dtype=float).reshape(model.n_landmarks, 2, 2)
-    finite = np.isfinite(boxes).all(axis=-1)
-    pts = rng.uniform(np.where(finite, boxes[..., 0], 0), np.where(finite, boxes[..., 1], 0))
-    return np.where(finite, pts, fallback)

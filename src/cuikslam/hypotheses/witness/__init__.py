@@ -1,0 +1,46 @@
+"""Certified consistency of a hypothesis: a witness point found numerically, verified rigorously.
+
+Narrowing can prove a hypothesis *impossible* (its boxes contract to empty) but never that
+it is *possible*. This package does the latter: it looks for one world (poses and
+landmarks) that satisfies every measured interval of the log under the hypothesis'
+assignment, with a local optimiser, and then verifies that point with the interval kernel
+(:mod:`cuikslam.interval`), so that a ``True`` answer is a proof.
+
+The stages, one module each:
+
+* :mod:`.model`: :class:`HypothesisModel`, the parametrisation of a hypothesis (an anchor
+  pose, a turn and distance per tree odometry, landmark positions) and its checks (every
+  other measured interval, loop closures, the sensor's negative information), evaluated in
+  floating point for the optimisers;
+* :mod:`.verify`: :func:`verify_witness`, the rigorous decision: interval forward
+  kinematics from a parameter point, and a Poincaré–Miranda box around it when loop
+  closures make equalities;
+* :mod:`.find`: :func:`find_witness`, the local search for a point that verifies, and
+  :func:`certify`, which runs it on every hypothesis of a
+  :class:`~cuikslam.results.Solution`;
+* :mod:`.hull`: :func:`inner_hull`, the same machinery used to measure the exact solution
+  set from inside (every point it keeps is verified), to judge how tight the narrowed
+  boxes are.
+"""
+
+from cuikslam.hypotheses.witness.find import certify, find_witness
+from cuikslam.hypotheses.witness.hull import InnerHull, inner_hull
+from cuikslam.hypotheses.witness.model import (
+    AIM_FRACTION,
+    MIN_MARGIN,
+    HypothesisModel,
+    WitnessPoint,
+)
+from cuikslam.hypotheses.witness.verify import verify_witness
+
+__all__ = [
+    "AIM_FRACTION",
+    "MIN_MARGIN",
+    "HypothesisModel",
+    "InnerHull",
+    "WitnessPoint",
+    "certify",
+    "find_witness",
+    "inner_hull",
+    "verify_witness",
+]
