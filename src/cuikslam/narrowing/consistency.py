@@ -24,7 +24,7 @@ import numpy as np
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.graph.encoding import KIND, OBSERVATION, ODOMETRY, TA, TB, XA, XB
 from cuikslam.narrowing._propagate import CONSISTENT, INCONSISTENT, propagate_arrays
-from cuikslam.narrowing.relaxation import tighten
+from cuikslam.narrowing.relaxation import WarmStarts, tighten
 
 __all__ = ["DEFAULT_LEVEL", "LEVELS", "Arrays", "resolve_level", "strengthen"]
 
@@ -167,15 +167,16 @@ def _polytope_rounds(
     targets = np.unique(np.concatenate([t for _, t in windows]))
     width = _total_width(lo, hi, targets)
     active = np.ones(len(lo), dtype=bool)
+    warm = [WarmStarts() for _ in windows]
     for round_index in range(MAX_LP_ROUNDS):
         before = hi - lo
         if round_index % FULL_ROUND_EVERY == 0:
             active[:] = True
-        for rows, window_targets in windows:
+        for (rows, window_targets), bases in zip(windows, warm, strict=True):
             chosen = window_targets[active[window_targets]]
             if chosen.size == 0:
                 continue
-            new_lo, new_hi, feasible = tighten(rows, lo, hi, chosen)
+            new_lo, new_hi, feasible = tighten(rows, lo, hi, chosen, bases)
             if not feasible:
                 return INCONSISTENT, applications
             lo[:] = new_lo

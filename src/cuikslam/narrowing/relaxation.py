@@ -23,7 +23,7 @@ from __future__ import annotations
 import functools
 import math
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import highspy
 import numpy as np
@@ -47,7 +47,15 @@ from cuikslam.graph.encoding import (
 )
 from cuikslam.interval._rounding import TWO_PI_HI, TWO_PI_LO, add_down, add_up, mul_down, mul_up
 
-__all__ = ["LinearRelaxation", "relax", "tighten"]
+__all__ = ["LinearRelaxation", "WarmStarts", "relax", "tighten"]
+
+
+@dataclass
+class WarmStarts:
+    """Optimal LP bases of earlier :func:`tighten` calls, per column and direction."""
+
+    minima: dict[int, highspy.HighsBasis] = field(default_factory=dict)
+    maxima: dict[int, highspy.HighsBasis] = field(default_factory=dict)
 
 
 @dataclass
@@ -310,12 +318,15 @@ def tighten(
     lo: np.ndarray,
     hi: np.ndarray,
     targets: np.ndarray,
+    warm: WarmStarts | None = None,
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Narrow the ``targets`` variables to the hull of the linear relaxation of ``factors``.
 
     Only the variables of ``factors`` enter the LP (so a window of a long graph stays
     small). Returns new ``(lo, hi, feasible)``; ``feasible`` is False when the relaxation
-    is proven empty (then the graph has no solution in the box).
+    is proven empty (then the graph has no solution in the box). Pass the same ``warm``
+    to repeated calls on the same factors: each LP then starts from the optimal basis of
+    its previous call, which the rows of a narrower box usually keep nearly optimal.
     """
     ensure_round_to_nearest()
     lo, hi = lo.copy(), hi.copy()
@@ -334,8 +345,10 @@ def tighten(
     columns = [int(local[v]) for v in targets if local[v] >= 0]
     chosen = [int(v) for v in targets if local[v] >= 0]
     # minima and maxima in two threads, each with its own HiGHS instance
+    warm = warm if warm is not None else WarmStarts()
     futures = [
-        _pool().submit(_bounds, relaxation, csc, box, columns, sense) for sense in (1.0, -1.0)
+        _pool().submit(_bounds, relaxation, csc, box, columns, sense, bases)
+        for sense, bases in ((1.0, warm.minima), (-1.0, warm.maxima))
     ]
     lower, upper = (f.result() for f in futures)
     for v, low, high in zip(chosen, lower, upper, strict=True):
@@ -357,10 +370,15 @@ def _bounds(
     box: np.ndarray,
     columns: list[int],
     sense: float,
+    bases: dict[int, highspy.HighsBasis],
 ) -> list[float]:
-    """Certified minima (sense 1) or maxima (sense -1) of the ``columns`` over the relaxation."""
+    """Certified minima (sense 1) or maxima (sense -1) of the ``columns`` over the relaxation.
+
+    ``bases`` maps a column to the optimal basis of its last LP; it is read and updated.
+    """
     ensure_round_to_nearest()  # the rounding mode is per thread
     solver = _load(relaxation, csc)
+    shape = (csc.shape[1], csc.shape[0])
     out = []
     previous = -1
     for j in columns:
@@ -368,7 +386,11 @@ def _bounds(
             solver.changeColCost(previous, 0.0)
         solver.changeColCost(j, sense)
         previous = j
+        basis = bases.get(j)
+        if basis is not None and (len(basis.col_status), len(basis.row_status)) == shape:
+            solver.setBasis(basis)
         solver.run()
+        bases[j] = solver.getBasis()
         if solver.getModelStatus() != highspy.HighsModelStatus.kOptimal:
             out.append(-math.inf if sense > 0 else math.inf)  # no certificate: keep the box
             continue
