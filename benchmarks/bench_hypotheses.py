@@ -6,8 +6,10 @@
 Each world runs in its own process so that its peak resident memory is its own. A
 "hypothesis processed" is one candidate (hypothesis, landmark) pair considered at a branch
 point: rejected by the same-scan rule, by the gate, proven empty by propagation, or kept.
-Also times the seed paper's experiment end to end (simulate + solve, unknown
-correspondence).
+"branched" counts the unlabelled observations processed: the search stops early when
+every hypothesis kept within ``--max-hypotheses`` is proven impossible. Also times the
+seed paper's experiment end to end (simulate + solve, unknown correspondence, after a
+warm-up that loads the numba cache), best of five runs.
 """
 
 from __future__ import annotations
@@ -19,6 +21,8 @@ import resource
 import sys
 import time
 from pathlib import Path
+
+PAPER_REPEATS = 5
 
 WORLDS = [
     # poses, landmarks, classes
@@ -63,6 +67,8 @@ def _run_world(
             "classes": len(classes),
             "observations": len(log.observations),
             "seconds": elapsed,
+            "branch_points": stats["branch_points"],
+            "unlabelled": sum(o.landmark is None for o in log.observations),
             "candidates": stats["candidates"],
             "candidates_per_s": stats["candidates"] / elapsed if elapsed else float("nan"),
             "created": stats["created"],
@@ -80,10 +86,19 @@ def _paper(queue: multiprocessing.Queue) -> None:
     from cuikslam.solver import solve
 
     solve(simulate_paper(seed=1, unknown=True)[0])  # warm-up (compile cache, imports)
-    start = time.perf_counter()
-    log, _ = simulate_paper(seed=0, unknown=True)
-    solution = solve(log)
-    queue.put({"paper_seconds": time.perf_counter() - start, "survivors": len(solution.hypotheses)})
+    seconds = []
+    for _ in range(PAPER_REPEATS):  # the machine is shared: report the best of a few runs
+        start = time.perf_counter()
+        log, _ = simulate_paper(seed=0, unknown=True)
+        solution = solve(log)
+        seconds.append(time.perf_counter() - start)
+    queue.put(
+        {
+            "paper_seconds": min(seconds),
+            "paper_seconds_median": sorted(seconds)[len(seconds) // 2],
+            "survivors": len(solution.hypotheses),
+        }
+    )
 
 
 def _in_process(target, *args) -> dict:
@@ -105,10 +120,11 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     rows = []
     paper = _in_process(_paper)
-    print(f"seed paper, unknown correspondence, end to end: {paper['paper_seconds']:.2f} s "
-          f"({paper['survivors']} survivors)")  # fmt: skip
-    header = ("poses", "lmks", "cls", "obs", "seconds", "cand.", "cand./s", "peak", "surv.",
-              "complete", "truth", "RSS MB")  # fmt: skip
+    print(f"seed paper, unknown correspondence, end to end: {paper['paper_seconds']:.3f} s "
+          f"(best of {PAPER_REPEATS}; median {paper['paper_seconds_median']:.3f} s; "
+          f"{paper['survivors']} survivors)")  # fmt: skip
+    header = ("poses", "lmks", "cls", "obs", "branched", "seconds", "cand.", "cand./s", "peak",
+              "surv.", "complete", "truth", "RSS MB")  # fmt: skip
     print(" ".join(f"{h:>8}" for h in header))
     for n_poses, n_landmarks, classes in WORLDS:
         if args.poses and n_poses not in args.poses:
@@ -119,7 +135,8 @@ def main(argv: list[str] | None = None) -> int:
         )  # fmt: skip
         rows.append(r)
         print(f"{r['poses']:>6} {r['landmarks']:>5} {r['classes']:>4} {r['observations']:>6} "
-              f"{r['seconds']:>8.2f} {r['candidates']:>9} {r['candidates_per_s']:>9.0f} "
+              f"{r['branch_points']:>6}/{r['unlabelled']:<6} {r['seconds']:>8.2f} "
+              f"{r['candidates']:>9} {r['candidates_per_s']:>9.0f} "
               f"{r['peak_alive']:>5} {r['survivors']:>5} {r['complete']!s:>8} "
               f"{r['true_hypothesis_kept']!s:>5} {r['peak_rss_mb']:>7.0f}")  # fmt: skip
         sys.stdout.flush()

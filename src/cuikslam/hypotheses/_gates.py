@@ -1,6 +1,6 @@
 """Compiled interval tests used by the hypothesis search.
 
-Both are one-sided and sound: ``gate`` says False only when a correspondence is
+All are one-sided and sound: ``gate`` says False only when a correspondence is
 impossible, and ``within_reach`` says False only when an UNSEEN constraint between a pose
 and a landmark holds for every value in their boxes (so it need not be added).
 """
@@ -38,6 +38,22 @@ def gate(
         and pylo <= hi[landmark_x + 1]
         and lo[landmark_x + 1] <= pyhi
     )
+
+
+@jit
+def gate_many(
+    lo: np.ndarray,
+    hi: np.ndarray,
+    pose_x: int,
+    landmark_xs: np.ndarray,
+    bearing: int,
+    distance: int,
+) -> np.ndarray:
+    """:func:`gate` for each landmark of ``landmark_xs``: one call per branch, not per pair."""
+    out = np.empty(landmark_xs.shape[0], dtype=np.bool_)
+    for k in range(landmark_xs.shape[0]):
+        out[k] = gate(lo, hi, pose_x, landmark_xs[k], bearing, distance)
+    return out
 
 
 @jit

@@ -1,11 +1,13 @@
 """Unknown correspondence: a collection of kinematic graphs, pruned only by proof (seed, Section 5).
 
-The log is processed in time order. Each live hypothesis (a *branch*) holds its own
-boxes and factors over one variable layout shared by all branches. An observation that
-names no landmark splits every branch into: each existing landmark of the same class that
-passes the gate, plus "a new landmark". A child starts from its parent's boxes and runs
-only the operators its new factor wakes; a child that contracts to empty is discarded,
-which is a proof, so the true correspondence is never lost.
+The log is processed in time order. All live hypotheses (*branches*) share one variable
+layout, one pool of factor rows and one set of base boxes (:mod:`._shared`); a branch holds
+only where it differs from them, a few tens of variables and rows, so the memory of the
+live set does not grow as branches times graph size. An observation that names no
+landmark splits every branch into: each existing landmark of the same class that passes
+the gate, plus "a new landmark". A child starts from its parent's boxes and runs only the
+operators its new factor wakes; a child that contracts to empty is discarded, which is a
+proof, so the true correspondence is never lost.
 
 Canonical labelling: landmarks are numbered by their first observation, and a new
 landmark always takes the next number, so the branches are distinct partitions of the
@@ -23,14 +25,22 @@ import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.graph.encoding import (
+    ANGLE,
+    KIND,
+    LENGTH,
     N_SLOTS,
-    NO_FACTOR,
     OBSERVATION,
     ODOMETRY,
+    TA,
+    TB,
     UNSEEN,
-    link_factor,
+    XA,
+    XB,
+    YA,
+    YB,
 )
-from cuikslam.hypotheses._gates import gate, pairs_within_reach
+from cuikslam.hypotheses._gates import gate_many, pairs_within_reach
+from cuikslam.hypotheses._shared import EMPTY_OVERLAY, Overlay, SharedGraph
 from cuikslam.interval._rounding import PI_HI, TWO_PI_HI
 from cuikslam.log.records import (
     LandmarkPrior,
@@ -39,8 +49,8 @@ from cuikslam.log.records import (
     Odometry,
     PosePrior,
 )
-from cuikslam.narrowing._propagate import INCONSISTENT, propagate_arrays
-from cuikslam.narrowing.consistency import DEFAULT_LEVEL, Arrays, resolve_level, strengthen
+from cuikslam.narrowing._propagate import INCONSISTENT
+from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level, strengthen
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL
 from cuikslam.results.solution import Hypothesis, Solution
 
@@ -174,115 +184,73 @@ def _add_sensor_variables(layout: _Layout, log: Log) -> None:
         layout.arc_var = layout.new_vars(arc)
 
 
+def _pose_columns(layout: _Layout, pose: int) -> tuple[int, int, int]:
+    """The x, y and theta variables of ``pose``."""
+    x = layout.pose_x[pose]
+    return x, x + 1, x + 2
+
+
 class _Branch:
-    """One live hypothesis: boxes, factors and adjacency, and its landmark assignment."""
+    """One live hypothesis: its overlay on the shared graph, and its landmark assignment.
+
+    The assignment is a persistent list (``(number, previous)`` pairs, newest first), so
+    a child shares its parent's history and only adds its newest entry.
+    """
 
     __slots__ = (
-        "assignment",
-        "entry_factor",
-        "entry_next",
-        "factors",
-        "head",
-        "hi",
+        "assigned",
         "landmark_class",
         "landmark_name",
         "landmark_x",
-        "lo",
-        "n_entries",
-        "n_factors",
+        "n_assigned",
+        "overlay",
     )
 
-    def __init__(self, layout: _Layout) -> None:
-        n_factors = len(layout.factor_measurements)
-        self.lo = np.array(layout.lo, dtype=np.float64)
-        self.hi = np.array(layout.hi, dtype=np.float64)
-        self.factors = np.full((max(n_factors, 1), 1 + N_SLOTS), NO_FACTOR, dtype=np.int64)
-        self.n_factors = n_factors
-        """Log factors occupy [0, n_log); UNSEEN factors are appended after them."""
-        self.head = np.full(layout.n_vars, -1, dtype=np.int64)
-        self.entry_factor = np.zeros(N_SLOTS * max(n_factors, 1), dtype=np.int64)
-        self.entry_next = np.zeros(N_SLOTS * max(n_factors, 1), dtype=np.int64)
-        self.n_entries = 0
+    def __init__(self) -> None:
+        self.overlay = EMPTY_OVERLAY
         self.landmark_x: list[int] = []
         self.landmark_class: list[str] = []
         self.landmark_name: list[str | None] = []
-        self.assignment: list[int] = []
+        self.assigned: tuple[int, tuple] | None = None
+        self.n_assigned = 0
 
-    def copy(self) -> _Branch:
+    def fork(self, overlay: Overlay) -> _Branch:
+        """A child with ``overlay``; landmark lists copied, assignment history shared."""
         other = _Branch.__new__(_Branch)
-        other.lo = self.lo.copy()
-        other.hi = self.hi.copy()
-        other.factors = self.factors.copy()
-        other.n_factors = self.n_factors
-        other.head = self.head.copy()
-        other.entry_factor = self.entry_factor.copy()
-        other.entry_next = self.entry_next.copy()
-        other.n_entries = self.n_entries
+        other.overlay = overlay
         other.landmark_x = list(self.landmark_x)
         other.landmark_class = list(self.landmark_class)
         other.landmark_name = list(self.landmark_name)
-        other.assignment = list(self.assignment)
+        other.assigned = self.assigned
+        other.n_assigned = self.n_assigned
         return other
 
-    def add_factor(self, f: int, row: tuple[int, ...]) -> None:
-        self.factors[f] = row
-        self.n_entries = link_factor(
-            self.factors[f], f, self.head, self.entry_factor, self.entry_next, self.n_entries
-        )
+    def assign(self, number: int) -> None:
+        """The next observation is landmark ``number``."""
+        self.assigned = (number, self.assigned)
+        self.n_assigned += 1
 
-    def append_factors(self, rows: np.ndarray) -> np.ndarray:
-        """Append factors after the log's factors, growing the arrays; returns their indices."""
-        needed = self.n_factors + len(rows)
-        if needed > self.factors.shape[0]:
-            capacity = max(needed, 2 * self.factors.shape[0])
-            grown = np.full((capacity, 1 + N_SLOTS), NO_FACTOR, dtype=np.int64)
-            grown[: self.factors.shape[0]] = self.factors
-            self.factors = grown
-            for name in ("entry_factor", "entry_next"):
-                old = getattr(self, name)
-                new = np.zeros(N_SLOTS * capacity, dtype=np.int64)
-                new[: old.shape[0]] = old
-                setattr(self, name, new)
-        indices = np.arange(self.n_factors, needed, dtype=np.int64)
-        for f, row in zip(indices, rows, strict=True):
-            self.add_factor(int(f), tuple(row))
-        self.n_factors = needed
-        return indices
+    def assignment_from(self, position: int) -> list[int]:
+        """Landmark numbers of the observations from ``position`` on (walks back from the
+        newest, so recent positions are cheap)."""
+        out = []
+        node = self.assigned
+        for _ in range(self.n_assigned - position):
+            out.append(node[0])
+            node = node[1]
+        return out[::-1]
 
-    def factors_of(self, variables: list[int]) -> np.ndarray:
-        found: set[int] = set()
-        for v in variables:
-            e = self.head[v]
-            while e >= 0:
-                found.add(int(self.entry_factor[e]))
-                e = self.entry_next[e]
-        return np.array(sorted(found), dtype=np.int64)
+    def new_landmark(self, x: int, landmark_class: str, name: str | None) -> int:
+        """Add a landmark whose x variable is ``x``; returns its number."""
+        self.landmark_x.append(x)
+        self.landmark_class.append(landmark_class)
+        self.landmark_name.append(name)
+        return len(self.landmark_x) - 1
 
-    def propagate(self, touched: np.ndarray, rtol: float, stats: SearchStatistics) -> bool:
-        """Narrow to the fixpoint from ``touched``; False when proven empty."""
-        if touched.size == 0:
-            return True
-        ensure_round_to_nearest()
-        status, applications = propagate_arrays(
-            self.lo,
-            self.hi,
-            self.factors,
-            self.head,
-            self.entry_factor,
-            self.entry_next,
-            touched,
-            rtol,
-            DEFAULT_ROUNDS,
-            2**62,
-        )
-        stats.operator_applications += applications
-        return status != INCONSISTENT
-
-    def box_size(self, pose_xs: np.ndarray) -> float:
-        """Sum of all pose (x, y, theta) and landmark widths, as :attr:`Hypothesis.box_size`."""
-        marks = np.array(self.landmark_x, dtype=np.int64)
-        cols = np.concatenate([pose_xs, pose_xs + 1, pose_xs + 2, marks, marks + 1])
-        return float(np.sum(self.hi[cols] - self.lo[cols]))
+    def landmark_vars(self) -> np.ndarray:
+        """The x and y variables of every landmark."""
+        x = np.array(self.landmark_x, dtype=np.int64)
+        return np.concatenate([x, x + 1])
 
 
 class _Search:
@@ -290,7 +258,6 @@ class _Search:
 
     def __init__(self, log: Log, rtol: float, max_hypotheses: int) -> None:
         self.log = log
-        self.rtol = rtol
         self.max_hypotheses = max_hypotheses
         self.layout = _build_layout(log)
         self.stats = SearchStatistics()
@@ -302,8 +269,19 @@ class _Search:
         """Pose -> record indices of its observations so far."""
         self.scan_done: list[int] = []
         """Poses whose scan is complete (all their observations processed)."""
+        self.done_xs = np.zeros(0, dtype=np.int64)
+        self.done_radii = np.zeros(0, dtype=np.int64)
+        """x and visibility-radius variables of the poses of ``scan_done``."""
         self.completes_after: dict[int, list[int]] = self._scan_completion()
-        self.branches = [_Branch(self.layout)]
+        pose_xs = np.array(sorted(self.layout.pose_x.values()), dtype=np.int64)
+        self.graph = SharedGraph(
+            np.array(self.layout.lo, dtype=np.float64),
+            np.array(self.layout.hi, dtype=np.float64),
+            np.sort(np.concatenate([pose_xs, pose_xs + 1, pose_xs + 2])),
+            rtol,
+            DEFAULT_ROUNDS,
+        )
+        self.branches = [_Branch()]
         self.observation_position: dict[int, int] = {}
         """Record index of an observation -> its position among the observations."""
 
@@ -324,42 +302,43 @@ class _Search:
         return completes
 
     # ------------------------------------------------------------------ records
-    def _all(self, apply: Callable[[_Branch], bool]) -> None:
+    def _all(self, apply: Callable[[int, _Branch], Overlay | None]) -> None:
+        """Check out each branch and apply (with its position); a branch whose new overlay is
+        None is proven empty."""
         survivors = []
-        for branch in self.branches:
-            if apply(branch):
-                survivors.append(branch)
-            else:
+        for k, branch in enumerate(self.branches):
+            self.graph.checkout(branch.overlay)
+            overlay = apply(k, branch)
+            if overlay is None:
                 self.stats.proven_empty += 1
+            else:
+                branch.overlay = overlay
+                survivors.append(branch)
         self.branches = survivors
 
     def _narrow_and_propagate(
         self, first: Callable[[_Branch], int], bounds: list[tuple[float, float]]
     ) -> None:
         """Intersect consecutive variables (from ``first(branch)``) with ``bounds``; propagate."""
+        lo = np.array([b[0] for b in bounds], dtype=np.float64)
+        hi = np.array([b[1] for b in bounds], dtype=np.float64)
 
-        def apply(branch: _Branch) -> bool:
-            start = first(branch)
-            variables = list(range(start, start + len(bounds)))
-            for v, (lo, hi) in zip(variables, bounds, strict=True):
-                branch.lo[v] = max(branch.lo[v], lo)
-                branch.hi[v] = min(branch.hi[v], hi)
-                if branch.lo[v] > branch.hi[v]:
-                    return False
-            return branch.propagate(branch.factors_of(variables), self.rtol, self.stats)
+        def apply(_: int, branch: _Branch) -> Overlay | None:
+            variables = np.arange(first(branch), first(branch) + len(bounds), dtype=np.int64)
+            return self.graph.restrict(variables, lo, hi)
 
         self._all(apply)
 
     def _fixed_factor(self, index: int, row: Callable[[_Branch], tuple[int, ...]]) -> None:
-        """Add the factor of record ``index`` (its row may differ by branch) everywhere."""
-        f = self.layout.record_factor[index]
-        touched = np.array([f], dtype=np.int64)
+        """Add the factor of record ``index`` (its row may differ by branch) everywhere.
 
-        def apply(branch: _Branch) -> bool:
-            branch.add_factor(f, row(branch))
-            return branch.propagate(touched, self.rtol, self.stats)
-
-        self._all(apply)
+        A row that every branch gets joins the shared base set at once.
+        """
+        rows = [row(branch) for branch in self.branches]
+        ids = self.graph.intern(np.array(rows, dtype=np.int64))
+        if len(set(ids.tolist())) == 1:
+            self.graph.add_to_base(ids[:1])
+        self._all(lambda k, _: self.graph.extend(ids[k : k + 1]))
 
     def _name_landmark(self, landmark: str, landmark_class: str, pose: int | None) -> None:
         """The user's landmark ``landmark`` appears: in each branch where it is not yet known,
@@ -374,7 +353,7 @@ class _Search:
             if landmark in branch.landmark_name:
                 children.append(branch)
                 continue
-            seen_here = {branch.assignment[self.observation_position[o]] for o in same_scan}
+            seen_here = self._seen(branch, same_scan)
             for number, (name, cls) in enumerate(
                 zip(branch.landmark_name, branch.landmark_class, strict=True)
             ):
@@ -384,75 +363,94 @@ class _Search:
                 if number in seen_here:
                     self.stats.excluded_same_scan += 1
                     continue
-                child = branch.copy()
+                child = branch.fork(branch.overlay)
                 child.landmark_name[number] = landmark
                 self.stats.created += 1
                 children.append(child)
             self.stats.candidates += 1
-            branch.landmark_x.append(self.layout.user_landmark_x[landmark])
-            branch.landmark_class.append(landmark_class)
-            branch.landmark_name.append(landmark)
-            number = len(branch.landmark_x) - 1
-            if self.has_sensor and not self._add_unseen(branch, self.scan_done, [number]):
+            number = branch.new_landmark(
+                self.layout.user_landmark_x[landmark], landmark_class, landmark
+            )
+            if self.has_sensor and not self._add_unseen(
+                branch, self.done_xs, self.done_radii, [number]
+            ):
                 self.stats.refuted_by_negative_information += 1
                 continue
             children.append(branch)
         self.branches = children
 
+    def _seen(self, branch: _Branch, observations: list[int]) -> set[int]:
+        """Landmark numbers that ``branch`` assigns to the given observation records."""
+        if not observations:
+            return set()
+        positions = [self.observation_position[o] for o in observations]
+        first = min(positions)
+        recent = branch.assignment_from(first)
+        return {recent[p - first] for p in positions}
+
     @staticmethod
     def _landmark_x(branch: _Branch, landmark: str) -> int:
         return branch.landmark_x[branch.landmark_name.index(landmark)]
 
+    def _observation_rows(self, index: int, record: Observation, xs: np.ndarray) -> np.ndarray:
+        """Factor rows of observation record ``index`` seeing the landmarks at x ``xs``."""
+        rows = np.empty((len(xs), 1 + N_SLOTS), dtype=np.int64)
+        pose = _pose_columns(self.layout, record.pose)
+        rows[:, [KIND, XA, YA, TA, TB]] = (OBSERVATION, *pose, -1)
+        rows[:, XB], rows[:, YB] = xs, xs + 1
+        rows[:, [ANGLE, LENGTH]] = self.layout.factor_measurements[self.layout.record_factor[index]]
+        return rows
+
     def _observation_row(self, index: int, record: Observation, landmark_x: int) -> tuple[int, ...]:
-        a = self.layout.pose_x[record.pose]
-        m, n = self.layout.factor_measurements[self.layout.record_factor[index]]
-        return (OBSERVATION, a, a + 1, a + 2, landmark_x, landmark_x + 1, -1, m, n)
+        return tuple(self._observation_rows(index, record, np.array([landmark_x]))[0].tolist())
 
     def _branch(self, index: int, record: Observation) -> None:
         """Split every branch over the landmarks this observation may be."""
         self.stats.branch_points += 1
-        f = self.layout.record_factor[index]
-        touched = np.array([f], dtype=np.int64)
         pose_x = self.layout.pose_x[record.pose]
-        bearing_var, range_var = self.layout.factor_measurements[f]
+        bearing_var, range_var = self.layout.factor_measurements[self.layout.record_factor[index]]
         slot_x = self.layout.observation_slot_x[index]
         same_scan = self.observations_at.get(record.pose, [])
+        others = self.done_xs != pose_x
+        done_xs, done_radii = self.done_xs[others], self.done_radii[others]
+        graph = self.graph
         children: list[_Branch] = []
         for branch in self.branches:
-            seen_here = {branch.assignment[self.observation_position[o]] for o in same_scan}
-            for number, cls in enumerate(branch.landmark_class):
-                if cls != record.landmark_class:
-                    continue
-                self.stats.candidates += 1
-                if number in seen_here:
-                    self.stats.excluded_same_scan += 1
-                    continue
-                landmark_x = branch.landmark_x[number]
-                if not gate(branch.lo, branch.hi, pose_x, landmark_x, bearing_var, range_var):
-                    self.stats.gated += 1
-                    continue
-                child = branch.copy()
-                child.add_factor(f, self._observation_row(index, record, landmark_x))
-                if not child.propagate(touched, self.rtol, self.stats):
+            graph.checkout(branch.overlay)
+            numbers = [
+                n for n, cls in enumerate(branch.landmark_class) if cls == record.landmark_class
+            ]
+            self.stats.candidates += len(numbers)
+            seen_here = self._seen(branch, same_scan)
+            kept = [n for n in numbers if n not in seen_here]
+            self.stats.excluded_same_scan += len(numbers) - len(kept)
+            numbers = kept
+            candidates = np.array([branch.landmark_x[n] for n in numbers], dtype=np.int64)
+            passed = gate_many(graph.lo, graph.hi, pose_x, candidates, bearing_var, range_var)
+            self.stats.gated += int(np.count_nonzero(~passed))
+            # rows of the passing landmarks, then of the new one, pooled in that order
+            xs = np.append(candidates[passed], slot_x)
+            ids = graph.intern(self._observation_rows(index, record, xs))
+            numbers = np.array(numbers, dtype=np.int64)[passed].tolist()
+            for k, number in enumerate(numbers):
+                overlay = graph.trial(ids[k : k + 1])
+                if overlay is None:
                     self.stats.proven_empty += 1
                     continue
-                child.assignment.append(number)
+                child = branch.fork(overlay)
+                child.assign(number)
                 self.stats.created += 1
                 children.append(child)
             # the new landmark: the parent itself becomes this child (no copy)
             self.stats.candidates += 1
-            branch.add_factor(f, self._observation_row(index, record, slot_x))
-            if not branch.propagate(touched, self.rtol, self.stats):
+            overlay = graph.extend(ids[-1:])
+            if overlay is None:
                 self.stats.proven_empty += 1
                 continue
-            branch.landmark_x.append(slot_x)
-            branch.landmark_class.append(record.landmark_class)
-            branch.landmark_name.append(None)
-            branch.assignment.append(len(branch.landmark_x) - 1)
+            branch.overlay = overlay
+            branch.assign(branch.new_landmark(slot_x, record.landmark_class, None))
             if self.has_sensor and not self._add_unseen(
-                branch,
-                [p for p in self.scan_done if p != record.pose],
-                [len(branch.landmark_x) - 1],
+                branch, done_xs, done_radii, [len(branch.landmark_x) - 1]
             ):
                 self.stats.refuted_by_negative_information += 1
                 continue
@@ -461,49 +459,62 @@ class _Search:
         self.branches = children
 
     # ---------------------------------------------------------- negative information
-    def _add_unseen(self, branch: _Branch, poses: list[int], landmarks: list[int]) -> bool:
-        """Add UNSEEN constraints between ``poses`` and the landmark numbers ``landmarks`` that
-        the poses did not observe and that are within reach; False when that proves the
-        branch impossible."""
-        if not poses or not landmarks:
+    def _add_unseen(
+        self,
+        branch: _Branch,
+        pose_xs: np.ndarray,
+        radius_vars: np.ndarray,
+        landmarks: list[int],
+        seen: np.ndarray | None = None,
+    ) -> bool:
+        """Add UNSEEN constraints to the checked-out ``branch`` between the poses (x and
+        radius variables) and the landmark numbers ``landmarks`` that the poses did not
+        observe (``seen``; none by default) and that are within reach; False when that
+        proves the branch impossible."""
+        if len(pose_xs) == 0 or not landmarks:
             return True
-        seen = np.zeros((len(poses), len(landmarks)), dtype=np.bool_)
-        column = {number: j for j, number in enumerate(landmarks)}
-        for i, pose in enumerate(poses):
-            for o in self.observations_at.get(pose, []):
-                j = column.get(branch.assignment[self.observation_position[o]])
-                if j is not None:
-                    seen[i, j] = True
-        pose_xs = np.array([self.layout.pose_x[p] for p in poses], dtype=np.int64)
-        radius_vars = np.array([self.layout.radius_var[p] for p in poses], dtype=np.int64)
+        if seen is None:
+            seen = np.zeros((len(pose_xs), len(landmarks)), dtype=np.bool_)
+        graph = self.graph
         landmark_xs = np.array([branch.landmark_x[n] for n in landmarks], dtype=np.int64)
         pairs = pairs_within_reach(
-            branch.lo, branch.hi, pose_xs, branch.lo[radius_vars], landmark_xs, seen
+            graph.lo, graph.hi, pose_xs, graph.lo[radius_vars], landmark_xs, seen
         )
         if len(pairs) == 0:
             return True
         a = pose_xs[pairs[:, 0]]
         b = landmark_xs[pairs[:, 1]]
-        rows = np.column_stack(
-            [
-                np.full(len(pairs), UNSEEN),
-                a, a + 1, a + 2, b, b + 1,
-                np.full(len(pairs), -1),
-                np.full(len(pairs), self.layout.arc_var),
-                radius_vars[pairs[:, 0]],
-            ]
-        )  # fmt: skip
+        rows = np.empty((len(pairs), 1 + N_SLOTS), dtype=np.int64)
+        rows[:, [KIND, TB, ANGLE]] = (UNSEEN, -1, self.layout.arc_var)
+        rows[:, XA], rows[:, YA], rows[:, TA] = a, a + 1, a + 2
+        rows[:, XB], rows[:, YB] = b, b + 1
+        rows[:, LENGTH] = radius_vars[pairs[:, 0]]
         self.stats.unseen_constraints += len(rows)
-        return branch.propagate(branch.append_factors(rows), self.rtol, self.stats)
+        overlay = graph.extend(graph.intern(rows))
+        if overlay is None:
+            return False
+        branch.overlay = overlay
+        return True
 
     def _scans_done(self, poses: list[int]) -> None:
         """The scans of ``poses`` are complete: every landmark they missed gets an UNSEEN."""
         self.scan_done.extend(poses)
         if not self.has_sensor:
             return
+        pose_xs = np.array([self.layout.pose_x[p] for p in poses], dtype=np.int64)
+        radius_vars = np.array([self.layout.radius_var[p] for p in poses], dtype=np.int64)
+        self.done_xs = np.concatenate([self.done_xs, pose_xs])
+        self.done_radii = np.concatenate([self.done_radii, radius_vars])
+        observed = [self.observations_at.get(p, []) for p in poses]
         survivors = []
         for branch in self.branches:
-            if self._add_unseen(branch, poses, list(range(len(branch.landmark_x)))):
+            self.graph.checkout(branch.overlay)
+            seen = np.zeros((len(poses), len(branch.landmark_x)), dtype=np.bool_)
+            for i, records in enumerate(observed):
+                for number in self._seen(branch, records):
+                    seen[i, number] = True
+            landmarks = list(range(len(branch.landmark_x)))
+            if self._add_unseen(branch, pose_xs, radius_vars, landmarks, seen):
                 survivors.append(branch)
             else:
                 self.stats.refuted_by_negative_information += 1
@@ -525,27 +536,30 @@ class _Search:
             self.level_applied = "hull"
             return
         self.level_applied = level
+        if level == "hull":
+            return
+        self.graph.release()
         survivors = []
         for branch in self.branches:
-            arrays = Arrays(
-                branch.factors[: branch.n_factors],
-                branch.head,
-                branch.entry_factor,
-                branch.entry_next,
-            )
+            lo, hi, arrays = self.graph.standalone(branch.overlay)
             status, applications = strengthen(
-                arrays, branch.lo, branch.hi, level, self.rtol, DEFAULT_ROUNDS
+                arrays, lo, hi, level, self.graph.rtol, DEFAULT_ROUNDS
             )
             self.stats.operator_applications += applications
             if status == INCONSISTENT:
                 self.stats.refuted_by_consistency += 1
             else:
+                branch.overlay = self.graph.overlay_of(lo, hi, branch.overlay.rows)
                 survivors.append(branch)
         self.branches = survivors
 
     def _ranked(self) -> list[_Branch]:
-        pose_xs = np.array(sorted(self.layout.pose_x.values()), dtype=np.int64)
-        return sorted(self.branches, key=lambda b: (len(b.landmark_x), b.box_size(pose_xs)))
+        """Fewest landmarks first, then fewest unbounded widths, then smallest total width."""
+        keys = {
+            id(b): (len(b.landmark_x), *self.graph.size_key(b.overlay, b.landmark_vars()))
+            for b in self.branches
+        }
+        return sorted(self.branches, key=lambda b: keys[id(b)])
 
     def _enforce_limit(self, index: int) -> None:
         if len(self.branches) <= self.max_hypotheses:
@@ -562,10 +576,17 @@ class _Search:
             )
         self.complete = False
 
+    def _maintain(self) -> None:
+        """Let the shared graph rebase and compact when the overlays have grown."""
+        overlays = self.graph.maintain([b.overlay for b in self.branches])
+        for branch, overlay in zip(self.branches, overlays, strict=True):
+            branch.overlay = overlay
+
     # ------------------------------------------------------------------ driver
     def run(self, progress: Callable[[int, int], None] | None) -> None:
         total = len(self.log.records)
         for index, record in enumerate(self.log.records):
+            ensure_round_to_nearest()
             if isinstance(record, PosePrior):
                 x = self.layout.pose_x[record.pose]
                 self._narrow_and_propagate(lambda _, x=x: x, [record.x, record.y, record.theta])
@@ -594,7 +615,7 @@ class _Search:
                         ),
                     )
                     for branch in self.branches:
-                        branch.assignment.append(branch.landmark_name.index(name))
+                        branch.assign(branch.landmark_name.index(name))
                 self.observation_position[index] = len(self.observation_position)
                 self.observations_at.setdefault(record.pose, []).append(index)
             completed = self.completes_after.get(index, [])
@@ -602,10 +623,12 @@ class _Search:
                 self._scans_done(completed)
             self.stats.peak_alive = max(self.stats.peak_alive, len(self.branches))
             self._enforce_limit(index)
+            self._maintain()
             if progress is not None:
                 progress(index + 1, total)
             if not self.branches:
                 break
+        self.stats.operator_applications += self.graph.applications
 
     # ------------------------------------------------------------------ results
     def hypotheses(self) -> list[Hypothesis]:
@@ -613,7 +636,8 @@ class _Search:
         pose_xs = np.array([self.layout.pose_x[p] for p in pose_ids], dtype=np.int64)
         has_user_ids = bool(self.layout.user_landmark_x)
         result = []
-        for branch in self._ranked():
+        for branch in self.branches:
+            lo, hi = self.graph.materialize(branch.overlay)
             names = []
             new_count = 0
             for name in branch.landmark_name:
@@ -622,13 +646,13 @@ class _Search:
                     name = f"N{new_count}" if has_user_ids else f"L{new_count}"
                 names.append(name)
             cols = pose_xs[:, None] + np.arange(3)[None, :]
-            poses = np.stack([branch.lo[cols], branch.hi[cols]], axis=-1)
+            poses = np.stack([lo[cols], hi[cols]], axis=-1)
             lx = np.array(branch.landmark_x, dtype=np.int64).reshape(-1)
             lcols = lx[:, None] + np.arange(2)[None, :]
-            landmarks = np.stack([branch.lo[lcols], branch.hi[lcols]], axis=-1).reshape(-1, 2, 2)
+            landmarks = np.stack([lo[lcols], hi[lcols]], axis=-1).reshape(-1, 2, 2)
             result.append(
                 Hypothesis(
-                    assignment=[names[k] for k in branch.assignment],
+                    assignment=[names[k] for k in branch.assignment_from(0)],
                     pose_ids=pose_ids,
                     poses=poses,
                     landmark_ids=names,
@@ -636,7 +660,7 @@ class _Search:
                     landmarks=landmarks,
                 )
             )
-        return result
+        return sorted(result, key=lambda h: (h.n_landmarks, h.box_size))
 
 
 def _label_permutations(h: Hypothesis, user_ids: set[str]) -> int:

@@ -1,0 +1,332 @@
+"""Storage shared by every live hypothesis: one base graph, and a small overlay per branch.
+
+Live hypotheses (branches) differ from each other in a few tens of variables and factors,
+so none holds a full copy of the graph. Shared by all:
+
+- the *base boxes*: reference bounds of every variable;
+- the *factor pool*: every distinct factor row that some branch holds, stored once, with
+  one adjacency over them all. Rows of the *base set* belong to every live branch.
+
+A branch holds an :class:`Overlay`: the variables whose bounds differ from the base, and
+the pool rows it holds beyond the base set. Overlays are never modified, so a child shares
+its parent's arrays until it changes something.
+
+To work on a branch it is *checked out*: its bounds are written over the base in working
+arrays and its rows are switched on; switching costs the two overlays, not the graph. A
+child (the branch plus some factors) is propagated on the working arrays by the same
+compiled kernel as a full graph; the variables it changed become the child's overlay and
+the working arrays are put back. Rows of other branches stay in the adjacency but read as
+``NO_FACTOR``, which propagation skips, so the result is bit for bit what a private copy
+of the branch, with its rows in pool order, would give (:meth:`SharedGraph.standalone`).
+
+Now and then the base moves to the bounds most branches have, rows that every branch
+holds join the base set, and rows that no live branch holds leave the pool
+(:meth:`SharedGraph.maintain`). None of this changes any branch's boxes or rows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from cuikslam.graph.encoding import KIND, N_SLOTS, NO_FACTOR
+from cuikslam.hypotheses import _kernels as k
+from cuikslam.narrowing._factors import fresh_memory
+from cuikslam.narrowing._propagate import INCONSISTENT
+from cuikslam.narrowing.consistency import Arrays
+
+__all__ = ["EMPTY_OVERLAY", "Overlay", "SharedGraph"]
+
+MIN_MAINTENANCE_LOAD = 4096
+"""Overlay entries (summed over branches) and pool rows below which nothing is maintained."""
+
+
+@dataclass(frozen=True, slots=True)
+class Overlay:
+    """What one branch holds beyond the shared base: never modified once built."""
+
+    idx: np.ndarray
+    """Sorted variables whose bounds differ from the base boxes."""
+    lo: np.ndarray
+    hi: np.ndarray
+    rows: np.ndarray
+    """Sorted pool rows that this branch holds beyond the base set."""
+
+    @property
+    def size(self) -> int:
+        return len(self.idx) + len(self.rows)
+
+    @property
+    def nbytes(self) -> int:
+        return self.idx.nbytes + self.lo.nbytes + self.hi.nbytes + self.rows.nbytes
+
+
+_NO_INT = np.zeros(0, dtype=np.int64)
+EMPTY_OVERLAY = Overlay(_NO_INT, np.zeros(0), np.zeros(0), _NO_INT)
+
+
+class SharedGraph:
+    """Base boxes, the factor pool, and the working arrays of the checked-out branch.
+
+    ``lo``/``hi`` are the working arrays that gates and kernels read: base + the
+    checked-out overlay. ``ranked`` are the variables whose widths rank branches (poses).
+    """
+
+    def __init__(
+        self, lo: np.ndarray, hi: np.ndarray, ranked: np.ndarray, rtol: float, max_rounds: int
+    ) -> None:
+        self.rtol = rtol
+        self.max_rounds = max_rounds
+        self.base_lo = np.array(lo, dtype=np.float64)
+        self.base_hi = np.array(hi, dtype=np.float64)
+        self.lo, self.hi = self.base_lo.copy(), self.base_hi.copy()
+        self._saved_lo, self._saved_hi = self.base_lo.copy(), self.base_hi.copy()
+        """Base + checked-out overlay, without a trial's changes."""
+        self._mark = np.zeros(len(lo), dtype=np.bool_)
+        self._ranked = np.zeros(len(lo), dtype=np.bool_)
+        self._ranked[ranked] = True
+        self._ranked_base = self._base_widths()
+        self.current = EMPTY_OVERLAY
+        self.applications = 0
+        self.n_rows = 0
+        self.n_entries = 0
+        self.head = np.full(len(lo), -1, dtype=np.int64)
+        self._allocate(1024)
+        self._table = k.rehash(self.rows, self.kinds, 0, 4096)
+        self._live_after_compaction = 0
+        self._load_after_rebase = 0
+
+    # ------------------------------------------------------------------ the pool
+    def _allocate(self, capacity: int) -> None:
+        """(Re)size the pool and the propagation's work arrays to ``capacity`` rows."""
+        n, e = self.n_rows, self.n_entries
+        rows = np.full((capacity, 1 + N_SLOTS), NO_FACTOR, dtype=np.int64)
+        kinds = np.full(capacity, NO_FACTOR, dtype=np.int64)
+        in_base = np.zeros(capacity, dtype=np.bool_)
+        entry_factor = np.zeros(N_SLOTS * capacity, dtype=np.int64)
+        entry_next = np.zeros(N_SLOTS * capacity, dtype=np.int64)
+        if n:
+            rows[:n], kinds[:n], in_base[:n] = self.rows[:n], self.kinds[:n], self.in_base[:n]
+            entry_factor[:e], entry_next[:e] = self.entry_factor[:e], self.entry_next[:e]
+        self.rows, self.kinds, self.in_base = rows, kinds, in_base
+        self.entry_factor, self.entry_next = entry_factor, entry_next
+        self._queue = np.empty(capacity + 1, dtype=np.int64)
+        self._state = np.zeros(capacity, dtype=np.int8)
+        self._memory = fresh_memory(capacity)
+        self._applied = np.empty(capacity, dtype=np.int64)
+
+    def intern(self, rows: np.ndarray) -> np.ndarray:
+        """Pool ids of factor rows (shape (k, 9)); rows not pooled yet are added, switched off."""
+        rows = np.ascontiguousarray(rows, dtype=np.int64).reshape(-1, 1 + N_SLOTS)
+        needed = self.n_rows + len(rows)
+        if needed > len(self.kinds):
+            self._allocate(max(needed, 2 * len(self.kinds)))
+        if 2 * needed > len(self._table):
+            size = 1 << int(4 * needed - 1).bit_length()
+            self._table = k.rehash(self.rows, self.kinds, self.n_rows, size)
+        ids, self.n_rows, self.n_entries = k.intern(
+            rows, self.rows, self.kinds, self.n_rows, self._table, self.head,
+            self.entry_factor, self.entry_next, self.n_entries,
+        )  # fmt: skip
+        return ids
+
+    def add_to_base(self, ids: np.ndarray) -> None:
+        """Rows that every live branch holds from now on (e.g. an odometry factor)."""
+        self.in_base[ids] = True
+        self.rows[ids, KIND] = self.kinds[ids]
+
+    def factors_of(self, variables: np.ndarray) -> np.ndarray:
+        """Sorted pool rows (switched on or not) that involve any of ``variables``."""
+        found: set[int] = set()
+        for v in variables:
+            e = self.head[v]
+            while e >= 0:
+                found.add(int(self.entry_factor[e]))
+                e = self.entry_next[e]
+        return np.array(sorted(found), dtype=np.int64)
+
+    # ------------------------------------------------------------- checking out
+    def checkout(self, overlay: Overlay) -> None:
+        """Make the working arrays hold the branch of ``overlay``."""
+        if overlay is self.current:
+            return
+        old = self.current
+        k.switch(
+            self.lo, self.hi, self._saved_lo, self._saved_hi, self.base_lo, self.base_hi,
+            old.idx, overlay.idx, overlay.lo, overlay.hi, self.rows, self.kinds, old.rows,
+            overlay.rows,
+        )  # fmt: skip
+        self.current = overlay
+
+    def release(self) -> None:
+        """Working arrays back to the base."""
+        self.checkout(EMPTY_OVERLAY)
+
+    def _apply(
+        self, ids: np.ndarray, touched: np.ndarray, narrowed: np.ndarray, keep: bool
+    ) -> Overlay | None:
+        """See :func:`._kernels.apply`; the overlay shares the current one's unchanged arrays."""
+        cur = self.current
+        status, applications, n_changed, idx, lo, hi, rows = k.apply(
+            self.lo, self.hi, self._saved_lo, self._saved_hi, self.rows, self.kinds,
+            self.in_base, self.head, self.entry_factor, self.entry_next, self._queue,
+            self._state, self._memory, self._applied, self._mark, cur.idx, cur.rows, ids,
+            touched, narrowed, self.rtol, self.max_rounds, keep,
+        )  # fmt: skip
+        self.applications += applications
+        if status == INCONSISTENT:
+            return None
+        if n_changed == 0:
+            idx, lo, hi = cur.idx, cur.lo, cur.hi
+        if len(rows) == len(cur.rows):
+            rows = cur.rows
+        overlay = Overlay(idx, lo, hi, rows)
+        if keep:
+            self.current = overlay
+        return overlay
+
+    def trial(self, ids: np.ndarray) -> Overlay | None:
+        """Overlay of a child: the checked-out branch plus rows ``ids``, propagated from them;
+        None when that is proven empty. The checked-out branch is left as it was."""
+        return self._apply(ids, ids, _NO_INT, keep=False)
+
+    def extend(self, ids: np.ndarray) -> Overlay | None:
+        """Add rows ``ids`` to the checked-out branch and propagate from them; its new
+        overlay (now checked out), or None when proven empty (then nothing changed)."""
+        return self._apply(ids, ids, _NO_INT, keep=True)
+
+    def restrict(self, variables: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> Overlay | None:
+        """Intersect ``variables`` of the checked-out branch with [lo, hi] and propagate;
+        its new overlay (now checked out), or None when proven empty."""
+        self.lo[variables] = np.maximum(self.lo[variables], lo)
+        self.hi[variables] = np.minimum(self.hi[variables], hi)
+        if np.any(self.lo[variables] > self.hi[variables]):
+            self.lo[variables] = self._saved_lo[variables]
+            self.hi[variables] = self._saved_hi[variables]
+            return None
+        return self._apply(_NO_INT, self.factors_of(variables), variables, keep=True)
+
+    # ------------------------------------------------------------- reading
+    def values(self, overlay: Overlay, variables: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Bounds of ``variables`` in the branch of ``overlay``."""
+        o = overlay
+        return k.values(o.idx, o.lo, o.hi, self.base_lo, self.base_hi, variables)
+
+    def materialize(self, overlay: Overlay) -> tuple[np.ndarray, np.ndarray]:
+        """Full private copies of the branch's bounds."""
+        lo, hi = self.base_lo.copy(), self.base_hi.copy()
+        lo[overlay.idx], hi[overlay.idx] = overlay.lo, overlay.hi
+        return lo, hi
+
+    def standalone(self, overlay: Overlay) -> tuple[np.ndarray, np.ndarray, Arrays]:
+        """The branch as a private graph: its bounds, and its rows in pool order, linked."""
+        lo, hi = self.materialize(overlay)
+        ids = k.union(np.flatnonzero(self.in_base[: self.n_rows]), overlay.rows)
+        rows = self.rows[ids]
+        rows[:, KIND] = self.kinds[ids]
+        head = np.full(len(lo), -1, dtype=np.int64)
+        entry_factor = np.zeros(N_SLOTS * max(len(rows), 1), dtype=np.int64)
+        entry_next = np.zeros_like(entry_factor)
+        k.link_rows(rows, len(rows), head, entry_factor, entry_next)
+        return lo, hi, Arrays(rows, head, entry_factor, entry_next)
+
+    def overlay_of(self, lo: np.ndarray, hi: np.ndarray, rows: np.ndarray) -> Overlay:
+        """The overlay of a branch given by full bounds and its rows beyond the base set."""
+        differs = (_bits(lo) != _bits(self.base_lo)) | (_bits(hi) != _bits(self.base_hi))
+        idx = np.flatnonzero(differs)
+        return Overlay(idx, lo[idx], hi[idx], rows)
+
+    def _base_widths(self) -> tuple[int, float]:
+        widths = (self.base_hi - self.base_lo)[self._ranked]
+        finite = np.isfinite(widths)
+        return int(np.count_nonzero(~finite)), float(np.sum(widths[finite]))
+
+    def size_key(self, overlay: Overlay, extra: np.ndarray) -> tuple[int, float]:
+        """(infinite widths, sum of finite widths) over the ranked variables and ``extra``.
+
+        Costs the overlay, not the graph: the base's sum is corrected where they differ.
+        """
+        o = overlay
+        n_inf, total = k.width_correction(
+            o.idx, o.lo, o.hi, self.base_lo, self.base_hi, self._ranked, extra
+        )
+        return self._ranked_base[0] + n_inf, self._ranked_base[1] + total
+
+    # ------------------------------------------------------------- maintenance
+    def maintain(self, overlays: list[Overlay]) -> list[Overlay]:
+        """Rebase and compact when the overlays or the pool have doubled since last time;
+        returns the overlays re-expressed (same branches, same boxes, same rows)."""
+        load = sum(o.size for o in overlays)
+        if load > max(MIN_MAINTENANCE_LOAD, 2 * self._load_after_rebase):
+            overlays = self.rebase(overlays)
+            self._load_after_rebase = sum(o.size for o in overlays)
+        if self.n_rows > max(MIN_MAINTENANCE_LOAD, 2 * self._live_after_compaction):
+            overlays = self.compact(overlays)
+            self._live_after_compaction = self.n_rows
+        return overlays
+
+    def rebase(self, overlays: list[Overlay]) -> list[Overlay]:
+        """Move the base boxes to the bounds most branches share, and rows every branch
+        holds into the base set."""
+        self.release()
+        if not overlays:
+            return overlays
+        overlays = self._promote_rows(overlays)
+        var = np.concatenate([o.idx for o in overlays])
+        lo = np.concatenate([o.lo for o in overlays])
+        hi = np.concatenate([o.hi for o in overlays])
+        lo_bits, hi_bits = _bits(lo), _bits(hi)
+        order = np.lexsort((hi_bits, lo_bits, var))
+        first = order[k.modes(var[order], lo_bits[order], hi_bits[order], len(overlays))]
+        new = (lo_bits[first] != _bits(self.base_lo[var[first]])) | (
+            hi_bits[first] != _bits(self.base_hi[var[first]])
+        )
+        first = first[new]
+        moved = var[first]
+        old_lo, old_hi = self.base_lo[moved], self.base_hi[moved]
+        self.base_lo[moved] = self.lo[moved] = self._saved_lo[moved] = lo[first]
+        self.base_hi[moved] = self.hi[moved] = self._saved_hi[moved] = hi[first]
+        self._ranked_base = self._base_widths()
+        base_lo, base_hi = self.base_lo, self.base_hi
+        return [
+            Overlay(*k.rebased(o.idx, o.lo, o.hi, base_lo, base_hi, moved, old_lo, old_hi), o.rows)
+            for o in overlays
+        ]
+
+    def _promote_rows(self, overlays: list[Overlay]) -> list[Overlay]:
+        """Rows that every overlay holds join the base set."""
+        ids, counts = np.unique(np.concatenate([o.rows for o in overlays]), return_counts=True)
+        common = ids[counts == len(overlays)]
+        if len(common) == 0:
+            return overlays
+        self.add_to_base(common)
+        return [Overlay(o.idx, o.lo, o.hi, o.rows[~self.in_base[o.rows]]) for o in overlays]
+
+    def compact(self, overlays: list[Overlay]) -> list[Overlay]:
+        """Drop the pool rows that neither the base set nor any overlay holds."""
+        self.release()
+        n = self.n_rows
+        live = self.in_base[:n].copy()
+        for o in overlays:
+            live[o.rows] = True
+        keep = np.flatnonzero(live)
+        renumber = np.full(n, -1, dtype=np.int64)
+        renumber[keep] = np.arange(len(keep))
+        rows, kinds, in_base = self.rows[keep], self.kinds[keep], self.in_base[keep]
+        self.n_rows = self.n_entries = 0
+        self._allocate(max(1024, 2 * len(keep)))
+        self.n_rows = len(keep)
+        self.rows[: self.n_rows], self.kinds[: self.n_rows] = rows, kinds
+        self.in_base[: self.n_rows] = in_base
+        self.head[:] = -1
+        self.n_entries = k.link_rows(
+            self.rows, self.n_rows, self.head, self.entry_factor, self.entry_next
+        )
+        self._table = k.rehash(self.rows, self.kinds, self.n_rows, len(self._table))
+        return [Overlay(o.idx, o.lo, o.hi, renumber[o.rows]) for o in overlays]
+
+
+def _bits(values: np.ndarray) -> np.ndarray:
+    """Bit patterns of float64 bounds, for exact comparison and sorting."""
+    return np.ascontiguousarray(values, dtype=np.float64).view(np.int64)

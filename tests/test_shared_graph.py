@@ -1,0 +1,205 @@
+"""Branches share one graph and hold only overlays: that must change nothing but cost.
+
+Every child built on the shared graph must have, bit for bit, the boxes a private full
+copy of its parent would get from the same propagation; maintenance (rebasing the shared
+boxes, compacting the factor pool) must not change any result; and the live branches must
+not hold anything close to a full copy each.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cuikslam.graph.encoding import KIND, NO_FACTOR, OBSERVATION, ODOMETRY
+from cuikslam.hypotheses import _shared, solve_unknown
+from cuikslam.hypotheses._gates import gate, gate_many
+from cuikslam.hypotheses._shared import EMPTY_OVERLAY, Overlay, SharedGraph
+from cuikslam.hypotheses.search import _Search
+from cuikslam.narrowing._factors import fresh_memory
+from cuikslam.narrowing._propagate import INCONSISTENT, propagate_arrays, propagate_buffered
+from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL
+from cuikslam.simulate import simulate_paper, simulate_random_world
+
+
+def _full_copy_child(graph: SharedGraph, ids: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """The child the old way: a private copy of the parent plus rows ``ids``, propagated."""
+    o = graph.current
+    child_rows = np.union1d(o.rows, ids[~graph.in_base[ids]])
+    lo, hi, arrays = graph.standalone(Overlay(o.idx, o.lo, o.hi, child_rows))
+    table_ids = np.union1d(np.flatnonzero(graph.in_base[: graph.n_rows]), child_rows)
+    touched = np.searchsorted(table_ids, ids)
+    status, _ = propagate_arrays(
+        lo, hi, arrays.factors, arrays.head, arrays.entry_factor, arrays.entry_next,
+        touched, graph.rtol, graph.max_rounds, 2**62,
+    )  # fmt: skip
+    return status, lo, hi
+
+
+def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
+    return np.array_equal(a.view(np.int64), b.view(np.int64))
+
+
+def test_every_child_equals_a_full_copy(monkeypatch: pytest.MonkeyPatch) -> None:
+    """During whole searches (maintenance forced often), compare every trial child."""
+    monkeypatch.setattr(_shared, "MIN_MAINTENANCE_LOAD", 8)
+    checked = {"children": 0, "empty": 0}
+    original = SharedGraph.trial
+
+    def checked_trial(graph: SharedGraph, ids: np.ndarray) -> Overlay | None:
+        status, lo, hi = _full_copy_child(graph, ids)
+        child = original(graph, ids)
+        assert (child is None) == (status == INCONSISTENT)
+        if child is None:
+            checked["empty"] += 1
+        else:
+            mine_lo, mine_hi = graph.materialize(child)
+            assert _same_bits(mine_lo, lo) and _same_bits(mine_hi, hi)
+            checked["children"] += 1
+        parent_lo, parent_hi = graph.materialize(graph.current)
+        assert _same_bits(graph.lo, parent_lo) and _same_bits(graph.hi, parent_hi)
+        return child
+
+    monkeypatch.setattr(SharedGraph, "trial", checked_trial)
+    solve_unknown(simulate_paper(seed=0, unknown=True)[0], consistency="hull")
+    for seed, n_poses, size in ((1, 30, (30.0, 20.0)), (2, 40, (60.0, 45.0))):
+        log, _ = simulate_random_world(
+            seed=seed, n_poses=n_poses, n_landmarks=6, size=size, unknown=True
+        )
+        solve_unknown(log, consistency="hull", max_hypotheses=40)
+    assert checked["children"] > 1000 and checked["empty"] > 100
+
+
+def _fingerprint(solution) -> list:
+    return [(h.assignment, h.poses.tobytes(), h.landmarks.tobytes()) for h in solution.hypotheses]
+
+
+WORLDS = [(1, 30, (30.0, 20.0)), (0, 40, (60.0, 45.0)), (2, 40, (60.0, 45.0))]
+
+
+@pytest.mark.parametrize(("seed", "n_poses", "size"), WORLDS)
+def test_maintenance_changes_no_result(
+    seed: int, n_poses: int, size: tuple[float, float], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    log, _ = simulate_random_world(
+        seed=seed, n_poses=n_poses, n_landmarks=6, size=size, unknown=True
+    )
+    monkeypatch.setattr(_shared, "MIN_MAINTENANCE_LOAD", 10**12)
+    never = solve_unknown(log, consistency="hull", max_hypotheses=30)
+    calls = {"rebase": 0, "compact": 0}
+    for name in calls:
+        original = getattr(SharedGraph, name)
+
+        def counted(graph, overlays, name=name, original=original):
+            calls[name] += 1
+            return original(graph, overlays)
+
+        monkeypatch.setattr(SharedGraph, name, counted)
+    monkeypatch.setattr(_shared, "MIN_MAINTENANCE_LOAD", 4)
+    often = solve_unknown(log, consistency="hull", max_hypotheses=30)
+    assert len(never.hypotheses) > 10
+    assert calls["rebase"] > 5 and calls["compact"] > 2
+    assert _fingerprint(never) == _fingerprint(often)
+
+
+def test_live_branches_hold_no_full_copies() -> None:
+    log, _ = simulate_random_world(
+        seed=1, n_poses=80, n_landmarks=10, size=(30.0, 20.0), unknown=True
+    )
+    search = _Search(log, DEFAULT_RTOL, 32)
+    search.run(None)
+    graph = search.graph
+    overlays = [b.overlay for b in search.branches]
+    assert len(overlays) > 16
+    n_vars = len(graph.base_lo)
+    full_copy_bytes = 2 * graph.base_lo.nbytes + graph.n_rows * graph.rows[0].nbytes
+    assert max(len(o.idx) for o in overlays) < n_vars / 10
+    assert sum(o.nbytes for o in overlays) < full_copy_bytes * len(overlays) / 20
+
+
+def test_rebase_moves_the_common_bounds_and_keeps_every_branch() -> None:
+    lo, hi = np.zeros(6), np.full(6, 10.0)
+    graph = SharedGraph(lo, hi, np.arange(3), DEFAULT_RTOL, DEFAULT_ROUNDS)
+    idx = np.array([1, 4])
+    overlays = [
+        Overlay(idx, np.array([2.0, 0.0]), np.array([3.0, 9.0]), EMPTY_OVERLAY.rows),
+        Overlay(idx, np.array([2.0, 0.0]), np.array([3.0, 8.0]), EMPTY_OVERLAY.rows),
+        Overlay(idx[:1], np.array([2.0]), np.array([3.0]), EMPTY_OVERLAY.rows),
+        EMPTY_OVERLAY,
+    ]
+    before = [graph.materialize(o) for o in overlays]
+    rebased = graph.rebase(overlays)
+    assert (graph.base_lo[1], graph.base_hi[1]) == (2.0, 3.0)  # 3 of 4 branches
+    assert graph.base_hi[4] == 10.0  # two different values against two at the base
+    for (blo, bhi), o in zip(before, rebased, strict=True):
+        lo_, hi_ = graph.materialize(o)
+        assert _same_bits(lo_, blo) and _same_bits(hi_, bhi)
+    assert sum(len(o.idx) for o in rebased) < sum(len(o.idx) for o in overlays)
+    signed_zero = np.where(np.arange(6) == 5, -0.0, graph.base_lo)  # differs from 0.0 in bits
+    assert list(graph.overlay_of(signed_zero, graph.base_hi, idx).idx) == [5]
+
+
+def test_buffered_propagation_leaves_its_buffers_clean() -> None:
+    """Many small propagations share work arrays: each must leave them as it found them."""
+    log, _ = simulate_paper(seed=0, unknown=False)
+    search = _Search(log, DEFAULT_RTOL, 10)
+    search.run(None)
+    lo, hi, arrays = search.graph.standalone(search.branches[0].overlay)
+    graph = (arrays.factors, arrays.head, arrays.entry_factor, arrays.entry_next)
+    n = len(arrays.factors)
+    everything = np.arange(n)
+    queue, state = np.empty(n + 1, dtype=np.int64), np.zeros(n, dtype=np.int8)
+    memory, applied = fresh_memory(n), np.empty(n, dtype=np.int64)
+    wide_lo, wide_hi = lo - 5.0, hi + 5.0
+    x0 = min(search.layout.pose_x.values())
+    empty_hi = np.where(np.arange(len(lo)) == x0, wide_lo - 1.0, wide_hi)
+    for start_hi in (wide_hi, empty_hi):
+        expected = (wide_lo.copy(), start_hi.copy())
+        status, count = propagate_arrays(*expected, *graph, everything, DEFAULT_RTOL, 1, 2**62)
+        got = (wide_lo.copy(), start_hi.copy())
+        status2, count2, n_applied = propagate_buffered(
+            *got, *graph, everything, DEFAULT_RTOL, 1, 2**62, queue, state, memory, applied
+        )
+        assert (status, count) == (status2, count2) and n_applied > 0
+        if status != INCONSISTENT:
+            assert _same_bits(got[0], expected[0]) and _same_bits(got[1], expected[1])
+        assert not state.any()
+        assert np.array_equal(memory, fresh_memory(n))
+    assert status == INCONSISTENT  # the second start box is empty at variable 0
+
+
+def test_switched_off_rows_are_never_applied() -> None:
+    log, _ = simulate_paper(seed=0, unknown=False)
+    search = _Search(log, DEFAULT_RTOL, 10)
+    search.run(None)
+    lo, hi, arrays = search.graph.standalone(search.branches[0].overlay)
+    factors = arrays.factors.copy()
+    factors[factors[:, KIND] == OBSERVATION, KIND] = NO_FACTOR
+    wide = (lo - 50.0, hi + 50.0)
+    out_lo, out_hi = wide[0].copy(), wide[1].copy()
+    _, count = propagate_arrays(
+        out_lo, out_hi, factors, arrays.head, arrays.entry_factor, arrays.entry_next,
+        np.arange(len(factors)), DEFAULT_RTOL, 1, 2**62,
+    )  # fmt: skip
+    assert count >= np.count_nonzero(factors[:, KIND] == ODOMETRY)
+    for x in search.layout.user_landmark_x.values():  # only observations touch landmarks
+        assert out_lo[x] == wide[0][x] and out_hi[x] == wide[1][x]
+
+
+def test_gate_many_is_gate_per_landmark() -> None:
+    log, _ = simulate_paper(seed=0, unknown=True)
+    search = _Search(log, DEFAULT_RTOL, 50)
+    search.run(None)
+    graph = search.graph
+    branch = search.branches[0]
+    graph.checkout(branch.overlay)
+    xs = np.array(branch.landmark_x, dtype=np.int64)
+    for index, f in list(search.layout.record_factor.items())[:20]:
+        record = log.records[index]
+        if not hasattr(record, "bearing"):
+            continue
+        bearing, distance = search.layout.factor_measurements[f]
+        pose_x = search.layout.pose_x[record.pose]
+        many = gate_many(graph.lo, graph.hi, pose_x, xs, bearing, distance)
+        one = [gate(graph.lo, graph.hi, pose_x, int(x), bearing, distance) for x in xs]
+        assert list(many) == one
