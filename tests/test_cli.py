@@ -345,6 +345,23 @@ def test_usage_error_exits_2(tmp_path: Path) -> None:
     assert "usage:" in result.stderr
 
 
+@pytest.mark.parametrize(
+    ("option", "value", "fragment"),
+    [
+        ("--strengthen-during", "-1", "must be 0 or more"),
+        ("--max-hypotheses", "0", "--max-hypotheses"),
+        ("--strengthen-limit", "x", "not an integer"),
+    ],
+)
+def test_bad_numeric_option_exits_2(
+    tmp_path: Path, small_log: Path, option: str, value: str, fragment: str
+) -> None:
+    result = run("solve", option, value, small_log, cwd=tmp_path)
+    assert result.returncode == 2
+    assert "Traceback" not in result.stderr
+    assert fragment in result.stderr
+
+
 @pytest.mark.parametrize("command", [None, "paper", "solve", "simulate", "plot"])
 def test_help(tmp_path: Path, command: str | None) -> None:
     result = run(*([command] if command else []), "--help", cwd=tmp_path)

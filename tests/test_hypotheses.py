@@ -111,6 +111,46 @@ def test_lp_level_keeps_the_truth_and_prunes_no_less(seed: int) -> None:
     }
 
 
+ambiguous_worlds = st.fixed_dictionaries(
+    {"seed": st.integers(0, 2**31 - 1), "n_poses": st.integers(4, 10)}
+)
+
+
+@settings(
+    max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow], derandomize=True
+)
+@given(ambiguous_worlds)
+def test_strengthening_during_the_search_keeps_the_truth(world: dict) -> None:
+    """lp after every branch point: the true partition survives, no new partition appears."""
+    log, truth = simulate_random_world(
+        seed=world["seed"], n_poses=world["n_poses"], n_landmarks=6,
+        classes=("door", "corridor"), size=(20.0, 15.0), max_range=6.0, fov=math.pi,
+        odometry_bounds=(0.15, 0.3), observation_bounds=(0.1, 0.05), unknown=True,
+    )  # fmt: skip
+    hull = solve_unknown(log, consistency="hull", max_hypotheses=400)
+    during = solve_unknown(
+        log, consistency="lp", max_hypotheses=400, strengthen_limit=0, strengthen_during=30
+    )
+    if not (hull.complete and during.complete):
+        return
+    index = true_survivor(during, truth)
+    assert index >= 0, "the true correspondence was discarded"
+    assert_truth_inside(during, truth, index)
+    assert {partition(h.assignment) for h in during.hypotheses} <= {
+        partition(h.assignment) for h in hull.hypotheses
+    }
+
+
+def test_strengthening_during_the_search_prunes_the_paper() -> None:
+    log, truth = simulate_paper(seed=0, unknown=True)
+    plain = solve_unknown(log, consistency="lp", strengthen_limit=0)
+    during = solve_unknown(log, consistency="lp", strengthen_limit=0, strengthen_during=20)
+    assert during.complete
+    assert len(during.hypotheses) < 0.9 * len(plain.hypotheses)
+    assert true_survivor(during, truth) == 0
+    assert during.statistics["created"] < plain.statistics["created"]
+
+
 def test_paper_true_hypothesis_survives_ranked_first() -> None:
     log, truth = simulate_paper(seed=0, unknown=True)
     solution = solve_unknown(log, consistency="hull")

@@ -16,6 +16,7 @@ from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.hypotheses.search import (
     DEFAULT_MAX_HYPOTHESES,
+    DEFAULT_STRENGTHEN_DURING,
     DEFAULT_STRENGTHEN_LIMIT,
     solve_unknown,
 )
@@ -63,6 +64,7 @@ def solve(
     consistency: str = DEFAULT_LEVEL,
     max_hypotheses: int = DEFAULT_MAX_HYPOTHESES,
     strengthen_limit: int = DEFAULT_STRENGTHEN_LIMIT,
+    strengthen_during: int = DEFAULT_STRENGTHEN_DURING,
     certify_limit: int = DEFAULT_CERTIFY_LIMIT,
     rtol: float = DEFAULT_RTOL,
     progress: ProgressCallback | None = None,
@@ -92,6 +94,7 @@ def solve(
             consistency=consistency,
             max_hypotheses=max_hypotheses,
             strengthen_limit=strengthen_limit,
+            strengthen_during=strengthen_during,
             rtol=rtol,
             progress=progress,
         )

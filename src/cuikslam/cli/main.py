@@ -70,6 +70,7 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         consistency=args.consistency,
         max_hypotheses=args.max_hypotheses,
         strengthen_limit=args.strengthen_limit,
+        strengthen_during=args.strengthen_during,
     )
 
 
@@ -180,6 +181,23 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
         help="apply the --consistency level to at most this many surviving hypotheses "
         "(default %(default)s)",
     )
+    p.add_argument(
+        "--strengthen-during",
+        type=_non_negative_int,
+        default=0,
+        help="also apply level lp after every ambiguous observation while at most this many "
+        "hypotheses live: fewer survivors, slower (default %(default)s: off)",
+    )
+
+
+def _non_negative_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more: {value}")
+    return value
 
 
 def _positive_int(text: str) -> int:

@@ -101,6 +101,7 @@ def run_solve(
     consistency: str = "auto",
     max_hypotheses: int = 10_000,
     strengthen_limit: int = 100,
+    strengthen_during: int = 0,
 ) -> int:
     # Everything that can be refused is checked before the solve (and before the solver,
     # slow to import, is loaded): a bad log or output path fails fast and writes nothing.
@@ -118,6 +119,7 @@ def run_solve(
             consistency=consistency,
             max_hypotheses=max_hypotheses,
             strengthen_limit=strengthen_limit,
+            strengthen_during=strengthen_during,
             progress=progress,
         )
     if json_path:

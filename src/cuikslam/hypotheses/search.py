@@ -56,6 +56,7 @@ from cuikslam.results.solution import Hypothesis, Solution
 
 __all__ = [
     "DEFAULT_MAX_HYPOTHESES",
+    "DEFAULT_STRENGTHEN_DURING",
     "DEFAULT_STRENGTHEN_LIMIT",
     "SearchStatistics",
     "solve_unknown",
@@ -65,6 +66,9 @@ DEFAULT_MAX_HYPOTHESES = 10_000
 """Live hypotheses kept at most; beyond it the best-ranked are kept and the result is incomplete."""
 
 DEFAULT_STRENGTHEN_LIMIT = 100
+DEFAULT_STRENGTHEN_DURING = 0
+"""Off by default: on the seed's experiment, ``lp`` after every branch point while at most
+20 hypotheses live leaves 375 survivors instead of 500, but takes 4.5 s instead of 0.2 s."""
 """Surviving hypotheses narrowed to the stronger consistency level at most."""
 
 _ANY = (-math.inf, math.inf)
@@ -256,9 +260,15 @@ class _Branch:
 class _Search:
     """The incremental search over one log."""
 
-    def __init__(self, log: Log, rtol: float, max_hypotheses: int) -> None:
+    def __init__(
+        self, log: Log, rtol: float, max_hypotheses: int, level: str = "hull", limit: int = 0
+    ) -> None:
         self.log = log
         self.max_hypotheses = max_hypotheses
+        self.level = level
+        """Level (above hull, ``lp`` is used) applied after each branch point to at most
+        ``limit`` live branches."""
+        self.limit = limit
         self.layout = _build_layout(log)
         self.stats = SearchStatistics()
         self.complete = True
@@ -529,15 +539,18 @@ class _Search:
         """
         if level != "hull" and len(self.branches) > limit:
             self.messages.append(
-                f"{len(self.branches)} hypotheses survived hull consistency: the '{level}' "
-                f"level was not applied to them (it is applied to at most {limit}; raise "
-                "--strengthen-limit to apply it); their boxes are hull-consistent"
+                f"{len(self.branches)} hypotheses survived: the '{level}' level was not "
+                f"applied to them at the end (it is applied to at most {limit}; raise "
+                "--strengthen-limit to apply it); their boxes are at least hull-consistent"
             )
             self.level_applied = "hull"
             return
         self.level_applied = level
-        if level == "hull":
-            return
+        if level != "hull":
+            self._strengthen_live(level)
+
+    def _strengthen_live(self, level: str) -> None:
+        """Narrow every live branch to ``level``, dropping those proven empty."""
         self.graph.release()
         survivors = []
         for branch in self.branches:
@@ -623,6 +636,13 @@ class _Search:
                 self._scans_done(completed)
             self.stats.peak_alive = max(self.stats.peak_alive, len(self.branches))
             self._enforce_limit(index)
+            if (
+                isinstance(record, Observation)
+                and record.landmark is None
+                and self.level != "hull"
+                and len(self.branches) <= self.limit
+            ):
+                self._strengthen_live("lp")
             self._maintain()
             if progress is not None:
                 progress(index + 1, total)
@@ -678,17 +698,22 @@ def solve_unknown(
     consistency: str = DEFAULT_LEVEL,
     max_hypotheses: int = DEFAULT_MAX_HYPOTHESES,
     strengthen_limit: int = DEFAULT_STRENGTHEN_LIMIT,
+    strengthen_during: int = DEFAULT_STRENGTHEN_DURING,
     rtol: float = DEFAULT_RTOL,
     progress: Callable[[int, int], None] | None = None,
 ) -> Solution:
     """Solve a log whose observations may lack landmark ids; return every surviving hypothesis.
 
     Hypotheses are ranked by fewest landmarks, then smallest total box size.
-    ``Solution.complete`` is False when ``max_hypotheses`` forced dropping some.
+    ``Solution.complete`` is False when ``max_hypotheses`` forced dropping some. The
+    ``consistency`` level is applied to the survivors when at most ``strengthen_limit``
+    remain; with a level other than ``hull``, ``lp`` is also applied after every branch
+    point while at most ``strengthen_during`` hypotheses live, so that the narrower boxes
+    gate and refute the next observations' candidates.
     """
     start = time.perf_counter()
     consistency = resolve_level(consistency, len(log.pose_ids))
-    search = _Search(log, rtol, max_hypotheses)
+    search = _Search(log, rtol, max_hypotheses, consistency, strengthen_during)
     search.run(progress)
     search.strengthen(consistency, strengthen_limit)
     hypotheses = search.hypotheses()
