@@ -73,7 +73,7 @@ def make_solution(n: int, *, complete: bool = True) -> Solution:
         if k == 1:
             h.status = PROVEN
         hypotheses.append(h)
-    return Solution(hypotheses=hypotheses, complete=complete)
+    return Solution(hypotheses=hypotheses, complete=complete, statistics={"candidates": 4 * n})
 
 
 @pytest.fixture(autouse=True)
@@ -248,6 +248,13 @@ def test_comparison_overlays_labelled_sets():
 
 
 # --------------------------------------------------------------------------- figure layer
+def test_known_correspondence_is_titled_as_such():
+    solution = make_solution(1)
+    solution.statistics = {"poses": 3, "landmarks": 2}  # no correspondence search ran
+    fig = plot_solution(solution, make_truth())
+    assert fig.get_suptitle().startswith("known correspondence · level ")
+
+
 def test_solution_with_one_hypothesis(tmp_path):
     fig = plot_solution(make_solution(1), make_truth())
     axes = visible_axes(fig)

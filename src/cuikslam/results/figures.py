@@ -596,6 +596,8 @@ def _panel_title(rank: int, hypothesis: Hypothesis, width: int) -> str:
 
 def _suptitle(solution: Solution, shown: int) -> str:
     n = len(solution.hypotheses)
+    if n == 1 and "candidates" not in solution.statistics:  # no correspondence search ran
+        return f"known correspondence · level {solution.consistency}"
     if n == 0:
         text = "no hypothesis survived"
         text += ": the log is proven inconsistent" if solution.complete else ""
