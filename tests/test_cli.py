@@ -348,7 +348,7 @@ def test_usage_error_exits_2(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("option", "value", "fragment"),
     [
-        ("--strengthen-during", "-1", "must be 0 or more"),
+        ("--strengthen-during", "-1", "must be at least 0"),
         ("--max-hypotheses", "0", "--max-hypotheses"),
         ("--strengthen-limit", "x", "not an integer"),
     ],
