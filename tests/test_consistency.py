@@ -167,3 +167,15 @@ def test_every_relaxation_row_holds_at_every_point_of_the_box(
     assert np.all(relaxation.row_lo - slack <= rows)
     assert np.all(rows <= relaxation.row_hi + slack)
     assert np.all(relaxation.col_lo <= point) and np.all(point <= relaxation.col_hi)
+
+
+def test_lp_reports_progress_window_by_window() -> None:
+    """A long lp solve tells the progress bar how far it is, ending at done == total."""
+    log, _ = _world({"seed": 3, "n_poses": 25, "n_landmarks": 4, "range_only": 0.0,
+                     "bearing_only": 0.0})  # fmt: skip
+    calls: list[tuple[int, int]] = []
+    solve(log, consistency="lp", certify_limit=0, progress=lambda d, t: calls.append((d, t)))
+    assert len(calls) > 3, "no progress while the LP rounds ran"
+    done = [d / t for d, t in calls]
+    assert done == sorted(done)
+    assert calls[-1][0] == calls[-1][1]

@@ -120,7 +120,7 @@ def _solve_known(
         head, entry_factor, entry_next = graph.adjacency()
         arrays = Arrays(graph.factor_table(), head, entry_factor, entry_next)
         status, applications = strengthen(
-            arrays, result.lo, result.hi, consistency, rtol, DEFAULT_ROUNDS
+            arrays, result.lo, result.hi, consistency, rtol, DEFAULT_ROUNDS, progress
         )
         result.applications += applications
         if status == INCONSISTENT:
