@@ -432,6 +432,7 @@ def test_solve_writes_json_and_csv(paper_run: tuple[Path, dict]) -> None:
     h = doc["hypotheses"][0]
     truth = load(folder / "trip.truth.json")
     assert h["assignment"] == truth["assignment"]
+    assert h["consistency"] == doc["consistency"] == "lp"
     assert set(h["poses"]) == set(truth["poses"])
     for pose_id, (x, y, _theta) in truth["poses"].items():
         box = h["poses"][pose_id]

@@ -151,6 +151,21 @@ def test_strengthening_during_the_search_prunes_the_paper() -> None:
     assert during.statistics["created"] < plain.statistics["created"]
 
 
+def test_beyond_the_limit_the_best_ranked_gets_the_stronger_level() -> None:
+    log, truth = simulate_paper(seed=0, unknown=True)
+    hull = solve_unknown(log, consistency="hull")
+    lp = solve_unknown(log, consistency="lp", strengthen_limit=10)
+    assert len(lp.hypotheses) > 10
+    assert lp.consistency == "hull"  # not every survivor reached lp
+    assert [h.consistency for h in lp.hypotheses[:3]] == ["lp", "hull", "hull"]
+    assert any("best-ranked one only" in m for m in lp.messages)
+    best, loose = lp.hypotheses[0], hull.hypotheses[0]
+    assert partition(best.assignment) == partition(loose.assignment)
+    assert best.box_size < 0.5 * loose.box_size
+    assert true_survivor(lp, truth) == 0
+    assert_truth_inside(lp, truth, 0)
+
+
 def test_paper_true_hypothesis_survives_ranked_first() -> None:
     log, truth = simulate_paper(seed=0, unknown=True)
     solution = solve_unknown(log, consistency="hull")

@@ -36,16 +36,20 @@ from cuikslam.results.solution import Hypothesis, Solution
 __all__ = ["hypothesis_from_graph", "solve"]
 
 ProgressCallback = Callable[[int, int], None]
+"""Called with (done, total) as a long solve advances."""
 
 DEFAULT_CERTIFY_LIMIT = 1
 """Best-ranked hypotheses that get a verified witness (a failed search costs ~1 s)."""
 CERTIFY_MAX_POSES = 50
 """No witness search beyond this many poses (it grows to tens of seconds at 100 poses)."""
-"""Called with (done, total) as a long solve advances."""
 
 
 def hypothesis_from_graph(
-    graph: KinematicGraph, lo: np.ndarray, hi: np.ndarray, assignment: list[str]
+    graph: KinematicGraph,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    assignment: list[str],
+    consistency: str = "",
 ) -> Hypothesis:
     """Package a graph's narrowed bounds as a :class:`Hypothesis`."""
     return Hypothesis(
@@ -55,6 +59,7 @@ def hypothesis_from_graph(
         landmark_ids=list(graph.landmark_ids),
         landmark_classes=list(graph.landmark_classes),
         landmarks=graph.landmark_boxes(lo, hi),
+        consistency=consistency,
     )
 
 
@@ -143,7 +148,7 @@ def _solve_known(
             consistency=consistency,
             messages=["the log is inconsistent: its constraints contract to empty (a proof)"],
         )
-    hypothesis = hypothesis_from_graph(graph, result.lo, result.hi, assignment)
+    hypothesis = hypothesis_from_graph(graph, result.lo, result.hi, assignment, consistency)
     return Solution(
         hypotheses=[hypothesis],
         statistics=statistics,

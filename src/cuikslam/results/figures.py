@@ -591,6 +591,8 @@ def _common_prefix(texts: Sequence[str]) -> str:
 def _panel_title(rank: int, hypothesis: Hypothesis, width: int) -> str:
     n = hypothesis.n_landmarks
     head = f"#{rank} · {n} landmark{'s' if n != 1 else ''} · {hypothesis.status}"
+    if hypothesis.consistency:
+        head += f" · {hypothesis.consistency}"
     return head + "\n" + _assignment_text(hypothesis.assignment, width)
 
 

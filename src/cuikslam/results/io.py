@@ -6,7 +6,8 @@ JSON layout (stable keys)::
      "hypotheses": [{"assignment": ["L0", ...],
                      "poses": {"0": {"x": [lo, hi], "y": [lo, hi], "theta": [lo, hi]}},
                      "landmarks": {"L0": {"class": "door", "x": [lo, hi], "y": [lo, hi]}},
-                     "status": "not refuted", "rank": 1, "n_landmarks": 4}],
+                     "status": "not refuted", "consistency": "lp", "rank": 1,
+                     "n_landmarks": 4}],
      "statistics": {...}, "timings": {...}, "log": "...", "consistency": "..."}
 
 Bounds are written with full precision (``repr`` of the floats), so reading a result
@@ -49,6 +50,7 @@ def _hypothesis_to_json(h: Hypothesis, rank: int) -> dict[str, Any]:
             for m, c, b in zip(h.landmark_ids, h.landmark_classes, h.landmarks, strict=True)
         },
         "status": h.status,
+        "consistency": h.consistency,
         "rank": rank,
         "n_landmarks": h.n_landmarks,
     }
@@ -118,6 +120,7 @@ def _hypothesis_from_json(doc: dict[str, Any], where: str) -> Hypothesis:
         landmark_classes=[str(marks[m].get("class", "")) for m in marks],
         landmarks=landmark_boxes,
         status=str(doc.get("status", "")),
+        consistency=str(doc.get("consistency", "")),
         witness=None if witness is None else {k: np.asarray(v) for k, v in witness.items()},
     )
 

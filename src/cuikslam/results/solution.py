@@ -34,6 +34,8 @@ class Hypothesis:
     status: str = NOT_REFUTED
     witness: dict[str, np.ndarray] | None = None
     """A verified solution point (``poses_xyt``, ``landmarks_xy``) when ``status`` is PROVEN."""
+    consistency: str = ""
+    """The consistency level these boxes reach (``hull``, ``lp``, ``lp-split``)."""
 
     @property
     def n_landmarks(self) -> int:

@@ -90,12 +90,18 @@ def comparison_table(
 
 
 def summary_table(solution: Solution, title: str = "Surviving hypotheses") -> Table:
-    """One line per hypothesis: rank, landmarks, status, total box size, assignment."""
+    """One line per hypothesis: rank, landmarks, status, level, total box size, assignment."""
     table = Table(title=title, title_justify="left")
-    for name in ("rank", "landmarks", "status", "Σ widths", "assignment (observation → landmark)"):
+    columns = ("rank", "landmarks", "status", "level", "Σ widths")
+    for name in (*columns, "assignment (observation → landmark)"):
         table.add_column(name)
     for rank, h in enumerate(solution.hypotheses, start=1):
         table.add_row(
-            str(rank), str(h.n_landmarks), h.status, f"{h.box_size:.2f}", " ".join(h.assignment)
+            str(rank),
+            str(h.n_landmarks),
+            h.status,
+            h.consistency or "—",
+            f"{h.box_size:.2f}",
+            " ".join(h.assignment),
         )
     return table
