@@ -28,6 +28,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from _exact import MP, TWO_PI, angle_inside, mpf
 from cuikslam.graph.encoding import ANGLE, LENGTH
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.narrowing._factors import EMPTY_FACTOR, narrow_factor
@@ -39,16 +40,7 @@ pytestmark = [
 ]
 
 
-# 1300 bits: the free floats may be subnormal next to 20.0, and derived values must not
-# round away their tiny parts (a bearing of -1 - 1e-102 is not -1).
-MP = mpmath.MPContext()
-MP.prec = 1300
-TWO_PI = 2 * MP.pi
 PI = float(MP.pi)
-
-
-def mpf(x: float) -> mpmath.mpf:
-    return MP.mpf(float(x))
 
 
 def below(v: mpmath.mpf) -> float:
@@ -86,16 +78,6 @@ class World:
             if not angle_inside(lo[i], hi[i], self.truth[i]):
                 bad.append(f"angle var {i}: [{lo[i]!r}, {hi[i]!r}] ∌ {self.truth[i]} mod 2π")
         return bad
-
-
-def angle_inside(lo: float, hi: float, v: mpmath.mpf) -> bool:
-    """Whether ``v + 2πk`` lies in [lo, hi] for some integer k."""
-    if not lo <= hi:
-        return False
-    if hi - lo >= 7.0:
-        return True
-    k = MP.ceil((mpf(lo) - v) / TWO_PI)
-    return v + k * TWO_PI <= mpf(hi)
 
 
 errors = st.one_of(

@@ -18,6 +18,7 @@ import pytest
 from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
+from _exact import MP, TWO_PI, angle_inside, mpf
 from cuikslam import interval as ia
 from cuikslam.interval import _rounding as rnd
 
@@ -28,16 +29,6 @@ pytestmark = [
 
 
 N = 400
-
-# A private context, so the precision set here leaks into no other test: 1300 bits hold
-# t + 2πk exactly enough for |k| <= 1e10 and |t| down to the subnormals.
-MP = mpmath.MPContext()
-MP.prec = 1300
-TWO_PI = 2 * MP.pi
-
-
-def mpf(x: float) -> mpmath.mpf:
-    return MP.mpf(float(x))
 
 
 def enclose(v: mpmath.mpf, exact: bool = True) -> tuple[float, float]:
@@ -66,13 +57,7 @@ def contains(box: np.ndarray, v: mpmath.mpf) -> bool:
 
 def contains_angle(box: np.ndarray, v: mpmath.mpf) -> bool:
     """Whether ``v + 2πk`` lies in the box for some integer k."""
-    lo, hi = float(box[0]), float(box[1])
-    if not lo <= hi:
-        return False
-    if hi - lo >= 7.0:
-        return True
-    k = MP.ceil((mpf(lo) - v) / TWO_PI)
-    return v + k * TWO_PI <= mpf(hi)
+    return angle_inside(float(box[0]), float(box[1]), v)
 
 
 def angle_kept(before: np.ndarray, after: np.ndarray, v: mpmath.mpf) -> bool:
