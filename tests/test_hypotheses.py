@@ -243,3 +243,23 @@ def test_box_arrays_have_the_documented_layout() -> None:
     assert h.landmarks.shape == (h.n_landmarks, 2, 2)
     assert np.all(h.poses[..., 0] <= h.poses[..., 1])
     assert math.isfinite(h.box_size)
+
+
+def test_check_truth_names_every_miss_and_counts_every_bound() -> None:
+    from cuikslam.results.solution import Hypothesis
+
+    h = Hypothesis(
+        assignment=["L1"],
+        pose_ids=[1, 2],
+        poses=np.array([[[0, 1], [0, 1], [0, 0.5]], [[2, 3], [2, 3], [6.0, 6.5]]], float),
+        landmark_ids=["L1"],
+        landmark_classes=["door"],
+        landmarks=np.array([[[5, 6], [5, 6]]], float),
+    )
+    poses = np.array([[0.5, 1.5, 0.2], [2.5, 2.5, 0.0]])  # pose 1 y misses; 0.0 ≡ 2π inside
+    report = check_truth(h, [1, 2], poses, {"L1": (7.0, 5.5)})
+    assert report.checked == 8
+    assert report.misses == [
+        "pose 1 y=1.5 not in [0.0, 1.0]",
+        "landmark L1 x=7.0 not in [5.0, 6.0]",
+    ]

@@ -74,13 +74,19 @@ def _cmd_solve(args: argparse.Namespace) -> int:
     )
 
 
-def _cmd_simulate(args: argparse.Namespace) -> int:
-    from cuikslam.simulate import simulate_paper, simulate_random_world
-
-    out = Path(args.output)
+def _log_and_truth_outputs(output: str) -> tuple[Path, Path]:
+    """The log path and its truth file beside it, both checked writable before any work."""
+    out = Path(output)
     truth_out = _truth_path_for(out)
     check_output_path(out)
     check_output_path(truth_out)
+    return out, truth_out
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from cuikslam.simulate import simulate_paper, simulate_random_world
+
+    out, truth_out = _log_and_truth_outputs(args.output)
     classes = tuple(c.strip() for c in args.classes.split(","))
     if not all(classes):
         raise CommandError(f"--classes {args.classes!r}: class names must be non-empty")
@@ -125,10 +131,7 @@ def _write_log_and_truth(log, truth, out: Path, truth_out: Path, *, quiet: bool)
 def _cmd_import(args: argparse.Namespace) -> int:
     from cuikslam.datasets import read_lost_in_the_woods
 
-    out = Path(args.output)
-    truth_out = _truth_path_for(out)
-    check_output_path(out)
-    check_output_path(truth_out)
+    out, truth_out = _log_and_truth_outputs(args.output)
     log, truth = read_lost_in_the_woods(
         args.file, start=args.start, steps=args.steps, stride=args.stride, unknown=not args.known
     )

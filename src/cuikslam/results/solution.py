@@ -8,6 +8,7 @@ Heading boxes are unwrapped: the true heading is congruent (mod 2 pi) to a value
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -121,19 +122,23 @@ def check_truth(
         if pose_id not in hypothesis.pose_ids:
             continue
         box = hypothesis.pose(pose_id)
-        for j, name in enumerate(("x", "y")):
-            checked += 1
-            if not box[j, 0] <= truth[j] <= box[j, 1]:
-                misses.append(f"pose {pose_id} {name}={truth[j]!r} not in {box[j].tolist()}")
-        checked += 1
+        checked += _check_xy(f"pose {pose_id}", box, truth, misses) + 1
         if not _angle_inside(box[2], float(truth[2])):
-            misses.append(f"pose {pose_id} theta={truth[2]!r} not in {box[2].tolist()} (mod 2pi)")
+            misses.append(
+                f"pose {pose_id} theta={float(truth[2])!r} not in {box[2].tolist()} (mod 2pi)"
+            )
     for landmark_id, xy in (landmark_xy or {}).items():
         if landmark_id not in hypothesis.landmark_ids:
             continue
-        box = hypothesis.landmark(landmark_id)
-        for j, name in enumerate(("x", "y")):
-            checked += 1
-            if not box[j, 0] <= xy[j] <= box[j, 1]:
-                misses.append(f"landmark {landmark_id} {name}={xy[j]!r} not in {box[j].tolist()}")
+        checked += _check_xy(
+            f"landmark {landmark_id}", hypothesis.landmark(landmark_id), xy, misses
+        )
     return TruthReport(misses, checked)
+
+
+def _check_xy(label: str, box: np.ndarray, xy: Sequence[float], misses: list[str]) -> int:
+    """Append a line to ``misses`` for each of x, y outside its box; return 2 (bounds checked)."""
+    for j, name in enumerate(("x", "y")):
+        if not box[j, 0] <= xy[j] <= box[j, 1]:
+            misses.append(f"{label} {name}={float(xy[j])!r} not in {box[j].tolist()}")
+    return 2
