@@ -8,8 +8,10 @@ Heading boxes are unwrapped: the true heading is congruent (mod 2 pi) to a value
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from decimal import Decimal, localcontext
+from fractions import Fraction
 
 import numpy as np
 
@@ -97,24 +99,100 @@ class TruthReport:
         return not self.misses
 
 
-def _angle_inside(box: np.ndarray, angle: float) -> bool:
-    lo, hi = float(box[0]), float(box[1])
-    if hi - lo >= 2 * math.pi:
+ExactLike = float | int | Fraction | Decimal | str
+"""A true value: a float, an exact rational, or a decimal string (all compared exactly)."""
+
+
+def _pi_enclosure(digits: int = 420) -> tuple[Fraction, Fraction]:
+    """Rationals ``lo < π < hi`` less than ``10**(10 - digits)`` apart (Machin's formula).
+
+    Fixed point with ``digits + 10`` decimals: each truncated term errs by at most one unit,
+    and fewer than ``digits`` terms are summed, so the sum errs by far less than 10**6 units.
+    """
+    unit = 10 ** (digits + 10)
+
+    def arctan_inverse(x: int) -> int:
+        total = term = unit // x
+        n, sign = 1, 1
+        while term:
+            term //= x * x
+            n += 2
+            sign = -sign
+            total += sign * (term // n)
+        return total
+
+    approx = 4 * (4 * arctan_inverse(5) - arctan_inverse(239))
+    return Fraction(approx - 10**6, unit), Fraction(approx + 10**6, unit)
+
+
+_PI_LO, _PI_HI = _pi_enclosure()
+_TWO_PI_LO, _TWO_PI_HI = 2 * _PI_LO, 2 * _PI_HI
+
+
+def _exact(value: object) -> Fraction:
+    """``value`` as an exact rational: a float exactly, a decimal string or Decimal exactly."""
+    if isinstance(value, Fraction):
+        return value
+    if isinstance(value, np.floating | np.integer):
+        value = value.item()
+    if isinstance(value, str):
+        return Fraction(Decimal(value.strip()))
+    if hasattr(value, "man_exp"):  # an mpmath mpf: mantissa * 2**exponent, exactly
+        man, exp = value.man_exp
+        return Fraction(man) * Fraction(2) ** exp
+    return Fraction(value)
+
+
+def _show(value: object) -> str:
+    """A true value in a message: a plain float when it is one, else its decimal digits
+    (25 significant at most) marked as such, so that "x=0.1 (decimal)" is not read as the
+    float 0.1."""
+    exact = _exact(value)
+    if Fraction(float(exact)) == exact:
+        return repr(float(exact))
+    with localcontext() as context:
+        context.prec = 25
+        digits = Decimal(exact.numerator) / Decimal(exact.denominator)
+    return f"{digits} (decimal)"
+
+
+def _angle_inside(box: np.ndarray, angle: Fraction) -> bool:
+    """Whether ``angle + 2πk`` lies in the float interval ``box`` for some integer k, exactly.
+
+    2π is known between two rationals 1e-409 apart; a k for which that enclosure does not
+    decide containment would need ``angle + 2πk`` within 1e-400 of a float bound, which
+    for k != 0 (2πk irrational) no float-sized truth comes near.
+    """
+    lo, hi = _exact(float(box[0])), _exact(float(box[1]))
+    if lo > hi:
+        return False
+    if hi - lo >= _TWO_PI_HI:
         return True
-    k = math.ceil((lo - angle) / (2 * math.pi))
-    return lo <= angle + 2 * math.pi * k <= hi
+    # the least k with angle + 2πk >= lo lies between these two (2π in [LO, HI])
+    ks = sorted({math.ceil((lo - angle) / _TWO_PI_LO), math.ceil((lo - angle) / _TWO_PI_HI)})
+    for k in range(ks[0] - 1, ks[-1] + 1):
+        low, high = angle + k * _TWO_PI_LO, angle + k * _TWO_PI_HI
+        if k < 0:
+            low, high = high, low
+        if lo <= low and high <= hi:
+            return True
+    return False
 
 
 def check_truth(
     hypothesis: Hypothesis,
     pose_ids: list[int],
-    poses_xyt: np.ndarray,
-    landmark_xy: dict[str, np.ndarray] | None = None,
+    poses_xyt: np.ndarray | Sequence[Sequence[ExactLike]],
+    landmark_xy: Mapping[str, Sequence[ExactLike]] | None = None,
 ) -> TruthReport:
-    """Check that every box of ``hypothesis`` contains the true pose (and landmark) values.
+    """Check, exactly, that every box of ``hypothesis`` contains the true poses and landmarks.
 
-    Headings are compared modulo 2 pi. ``landmark_xy`` maps the hypothesis' landmark ids
-    to true positions (skip landmarks whose identity differs, e.g. in a wrong hypothesis).
+    True values may be floats, Fractions, Decimals or decimal strings (e.g.
+    :meth:`GroundTruth.exact_poses <cuikslam.simulate.truth.GroundTruth.exact_poses>`):
+    each is compared with the float bounds as an exact rational, so a 60-digit truth just
+    outside a bound equal to its rounding is a miss. Headings are compared modulo 2π, with
+    2π enclosed to 400 digits. ``landmark_xy`` maps the hypothesis' landmark ids to true
+    positions (skip landmarks whose identity differs, e.g. in a wrong hypothesis).
     """
     misses: list[str] = []
     checked = 0
@@ -123,9 +201,9 @@ def check_truth(
             continue
         box = hypothesis.pose(pose_id)
         checked += _check_xy(f"pose {pose_id}", box, truth, misses) + 1
-        if not _angle_inside(box[2], float(truth[2])):
+        if not _angle_inside(box[2], _exact(truth[2])):
             misses.append(
-                f"pose {pose_id} theta={float(truth[2])!r} not in {box[2].tolist()} (mod 2pi)"
+                f"pose {pose_id} theta={_show(truth[2])} not in {box[2].tolist()} (mod 2pi)"
             )
     for landmark_id, xy in (landmark_xy or {}).items():
         if landmark_id not in hypothesis.landmark_ids:
@@ -136,9 +214,11 @@ def check_truth(
     return TruthReport(misses, checked)
 
 
-def _check_xy(label: str, box: np.ndarray, xy: Sequence[float], misses: list[str]) -> int:
+def _check_xy(label: str, box: np.ndarray, xy: Sequence[ExactLike], misses: list[str]) -> int:
     """Append a line to ``misses`` for each of x, y outside its box; return 2 (bounds checked)."""
     for j, name in enumerate(("x", "y")):
-        if not box[j, 0] <= xy[j] <= box[j, 1]:
-            misses.append(f"{label} {name}={float(xy[j])!r} not in {box[j].tolist()}")
+        lo, hi = float(box[j, 0]), float(box[j, 1])
+        value = _exact(xy[j])
+        if not (lo <= hi and _exact(lo) <= value <= _exact(hi)):
+            misses.append(f"{label} {name}={_show(xy[j])} not in {box[j].tolist()}")
     return 2

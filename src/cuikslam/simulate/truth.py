@@ -2,6 +2,23 @@
 
 A simulator returns a :class:`GroundTruth` next to its :class:`~cuikslam.log.records.Log`
 so that tests and benchmarks can check that every guaranteed box contains the truth.
+
+Two truth-file layouts are read. The one :func:`write_truth_file` writes::
+
+    {"poses": {"0": [x, y, theta]}, "landmarks": {"L0": {"class": .., "x": .., "y": ..}},
+     "assignment": ["L0", ..]}
+
+and the reproducers' layout, where a landmark is ``[x, y, class]`` and the assignment is
+called ``obs_truth`` or ``observation_landmark``::
+
+    {"poses": {"0": ["0.4864279400447726331435660540591925", ..]},
+     "landmarks": {"L0": ["-3.5675477481952038161", "-4.42128592223", "c0"]},
+     "obs_truth": ["L0", ..]}
+
+Every coordinate may be a JSON number or a decimal string. The values are kept exactly
+(:class:`fractions.Fraction`, see :meth:`GroundTruth.exact_poses`), next to their nearest
+floats (``poses_xyt``, ``landmarks_xy``): a decimal truth of 60 digits may lie just outside
+a box whose float bound equals its rounding, and only the exact value can tell.
 """
 
 from __future__ import annotations
@@ -9,7 +26,10 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 from dataclasses import dataclass
+from decimal import Decimal
+from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
@@ -49,6 +69,12 @@ class GroundTruth:
         The class of each landmark.
     assignment : list[str]
         The true landmark id of each observation, in log order.
+    poses_exact : list of (x, y, theta) Fractions, optional
+        The exact true values behind ``poses_xyt`` (row ``i`` for ``pose_ids[i]``) when
+        they are not floats (a truth file of decimal strings); ``None`` when
+        ``poses_xyt`` is exact.
+    landmarks_exact : list of (x, y) Fractions, optional
+        The same for ``landmarks_xy``.
     """
 
     poses_xyt: np.ndarray
@@ -57,6 +83,8 @@ class GroundTruth:
     landmark_ids: list[str]
     landmark_classes: list[str]
     assignment: list[str]
+    poses_exact: list[tuple[Fraction, Fraction, Fraction]] | None = None
+    landmarks_exact: list[tuple[Fraction, Fraction]] | None = None
 
     def pose_xyt(self, pose: int) -> np.ndarray:
         """The true ``(x, y, theta)`` of pose id ``pose``."""
@@ -69,6 +97,21 @@ class GroundTruth:
     def landmark_class(self, landmark: str) -> str:
         """The class of landmark id ``landmark``."""
         return self.landmark_classes[self.landmark_ids.index(landmark)]
+
+    def exact_poses(self) -> list[tuple[Fraction, ...]]:
+        """The exact true ``(x, y, theta)`` of every pose, in ``pose_ids`` order."""
+        if self.poses_exact is not None:
+            return [tuple(row) for row in self.poses_exact]
+        return [tuple(Fraction(float(v)) for v in row) for row in self.poses_xyt]
+
+    def exact_landmark(self, landmark: str) -> tuple[Fraction, Fraction]:
+        """The exact true ``(x, y)`` of landmark id ``landmark``."""
+        j = self.landmark_ids.index(landmark)
+        if self.landmarks_exact is not None:
+            x, y = self.landmarks_exact[j]
+        else:
+            x, y = (Fraction(float(v)) for v in self.landmarks_xy[j])
+        return x, y
 
 
 def wrap_angle(angle: float) -> float:
@@ -117,21 +160,24 @@ def write_truth_file(truth: GroundTruth, path: str | os.PathLike[str]) -> None:
 
 
 def read_truth_file(path: str | os.PathLike[str]) -> GroundTruth:
-    """Read a truth file written by :func:`write_truth_file`.
+    """Read a truth file (either layout of the module docstring), keeping exact values.
 
     Raises
     ------
     LogFormatError
-        If the file cannot be read, is not JSON, or does not have the truth layout.
+        If the file cannot be read, is not JSON, or does not have a truth layout.
     """
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise LogFormatError(path, None, f"cannot read truth file: {exc}") from exc
     try:
-        doc = json.loads(text)
+        # Numbers are kept as their decimal text (Decimal), never rounded to a float.
+        doc = json.loads(text, parse_float=Decimal)
     except json.JSONDecodeError as exc:
         raise LogFormatError(path, exc.lineno, f"not valid JSON: {exc.msg}") from exc
+    except (ValueError, RecursionError) as exc:  # e.g. an integer of 5,000 digits
+        raise LogFormatError(path, None, f"not valid JSON: {exc}") from None
     try:
         return _truth_from_json(doc)
     except _TruthLayoutError as exc:
@@ -142,23 +188,40 @@ class _TruthLayoutError(Exception):
     """A JSON document that is not a truth file; turned into ``LogFormatError``."""
 
 
+_ASSIGNMENT_KEYS = ("assignment", "obs_truth", "observation_landmark")
+_DECIMAL = re.compile(r"[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?")
+_MAX_DIGITS = 2000
+"""Longest decimal string accepted (bounds the work of an exact conversion)."""
+_FLOAT_MAX = Fraction(np.finfo(float).max)
+
+
 def _truth_from_json(doc: Any) -> GroundTruth:
     if not isinstance(doc, dict):
         raise _TruthLayoutError("a truth file must be a JSON object")
-    missing = [key for key in ("poses", "landmarks", "assignment") if key not in doc]
+    keys = [key for key in _ASSIGNMENT_KEYS if key in doc]
+    missing = [key for key in ("poses", "landmarks") if key not in doc]
+    if not keys:
+        missing.append("assignment")
     if missing:
-        raise _TruthLayoutError(f"truth file lacks key(s) {', '.join(map(repr, missing))}")
-    poses, landmarks, assignment = doc["poses"], doc["landmarks"], doc["assignment"]
+        raise _TruthLayoutError(
+            f"truth file lacks key(s) {', '.join(map(repr, missing))}"
+            + (" (the assignment may also be called 'obs_truth')" if not keys else "")
+        )
+    if len(keys) > 1:
+        raise _TruthLayoutError(f"truth file has both {keys[0]!r} and {keys[1]!r}")
+    poses, landmarks, assignment = doc["poses"], doc["landmarks"], doc[keys[0]]
     if not isinstance(poses, dict):
         raise _TruthLayoutError('"poses" must be an object {"<pose id>": [x, y, theta]}')
     if not isinstance(landmarks, dict):
-        raise _TruthLayoutError('"landmarks" must be an object {"<id>": {"class", "x", "y"}}')
+        raise _TruthLayoutError(
+            '"landmarks" must be an object {"<id>": {"class", "x", "y"}} or {"<id>": [x, y, class]}'
+        )
     if not isinstance(assignment, list):
-        raise _TruthLayoutError('"assignment" must be a list of landmark ids')
+        raise _TruthLayoutError(f'"{keys[0]}" must be a list of landmark ids')
 
     pose_ids: list[int] = []
-    poses_xyt = np.empty((len(poses), 3))
-    for i, (key, xyt) in enumerate(poses.items()):
+    poses_exact: list[tuple[Fraction, Fraction, Fraction]] = []
+    for key, xyt in poses.items():
         try:
             pose_ids.append(int(key))
         except ValueError:
@@ -166,33 +229,70 @@ def _truth_from_json(doc: Any) -> GroundTruth:
         if pose_ids[-1] in pose_ids[:-1]:
             raise _TruthLayoutError(f"pose id {key!r} appears twice")
         if not (isinstance(xyt, list) and len(xyt) == 3):
-            raise _TruthLayoutError(f"pose {key}: expected [x, y, theta], got {xyt!r}")
-        poses_xyt[i] = [_finite(v, f"pose {key}") for v in xyt]
+            raise _TruthLayoutError(f"pose {key}: expected [x, y, theta], got {_show(xyt)}")
+        x, y, theta = (_exact(v, f"pose {key}") for v in xyt)
+        poses_exact.append((x, y, theta))
 
     landmark_classes: list[str] = []
-    landmarks_xy = np.empty((len(landmarks), 2))
-    for j, (lid, entry) in enumerate(landmarks.items()):
-        if not (isinstance(entry, dict) and {"class", "x", "y"} <= entry.keys()):
-            raise _TruthLayoutError(f'landmark {lid}: expected {{"class", "x", "y"}}')
-        if not isinstance(entry["class"], str):
+    landmarks_exact: list[tuple[Fraction, Fraction]] = []
+    for lid, entry in landmarks.items():
+        if isinstance(entry, dict) and {"class", "x", "y"} <= entry.keys():
+            cls, xy = entry["class"], (entry["x"], entry["y"])
+        elif isinstance(entry, list) and len(entry) == 3:
+            cls, xy = entry[2], (entry[0], entry[1])
+        else:
+            raise _TruthLayoutError(
+                f'landmark {lid}: expected {{"class", "x", "y"}} or [x, y, class], '
+                f"got {_show(entry)}"
+            )
+        if not isinstance(cls, str):
             raise _TruthLayoutError(f"landmark {lid}: class must be a string")
-        landmark_classes.append(entry["class"])
-        landmarks_xy[j] = [_finite(entry[k], f"landmark {lid}") for k in ("x", "y")]
+        landmark_classes.append(cls)
+        x, y = (_exact(v, f"landmark {lid}") for v in xy)
+        landmarks_exact.append((x, y))
 
     for k, lid in enumerate(assignment):
         if not isinstance(lid, str) or lid not in landmarks:
-            raise _TruthLayoutError(f"assignment[{k}] = {lid!r} is not a landmark id")
+            raise _TruthLayoutError(f"{keys[0]}[{k}] = {_show(lid)} is not a landmark id")
+    poses_xyt = np.array([[float(v) for v in row] for row in poses_exact], float)
+    landmarks_xy = np.array([[float(v) for v in row] for row in landmarks_exact], float)
     return GroundTruth(
-        poses_xyt=poses_xyt,
+        poses_xyt=poses_xyt.reshape(len(poses_exact), 3),
         pose_ids=pose_ids,
-        landmarks_xy=landmarks_xy,
+        landmarks_xy=landmarks_xy.reshape(len(landmarks_exact), 2),
         landmark_ids=list(landmarks),
         landmark_classes=landmark_classes,
         assignment=list(assignment),
+        poses_exact=poses_exact,
+        landmarks_exact=landmarks_exact,
     )
 
 
-def _finite(value: Any, where: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise _TruthLayoutError(f"{where}: {value!r} is not a finite number")
-    return float(value)
+def _show(value: Any) -> str:
+    """A short rendering of a JSON value for a message (Decimals as plain numbers)."""
+    text = str(value) if isinstance(value, Decimal) else repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _exact(value: Any, where: str) -> Fraction:
+    """A JSON number or decimal string as an exact Fraction (finite, within float range)."""
+    if isinstance(value, str):
+        text = value.strip()
+        if len(text) > _MAX_DIGITS or not _DECIMAL.fullmatch(text):
+            raise _TruthLayoutError(f"{where}: {_show(value)} is not a finite number")
+        value = Decimal(text)
+    if isinstance(value, bool) or not isinstance(value, int | float | Decimal):
+        raise _TruthLayoutError(f"{where}: {_show(value)} is not a finite number")
+    if isinstance(value, float) and not math.isfinite(value):
+        raise _TruthLayoutError(f"{where}: {_show(value)} is not a finite number")
+    if isinstance(value, Decimal):
+        if not value.is_finite():
+            raise _TruthLayoutError(f"{where}: {_show(value)} is not a finite number")
+        if len(value.as_tuple().digits) > _MAX_DIGITS:
+            raise _TruthLayoutError(f"{where}: {_show(value)} has too many digits")
+        if not value.is_zero() and not -_MAX_DIGITS <= value.adjusted() <= 400:
+            raise _TruthLayoutError(f"{where}: {_show(value)} is beyond the float range")
+    exact = Fraction(value)
+    if abs(exact) > _FLOAT_MAX:
+        raise _TruthLayoutError(f"{where}: {_show(value)} is beyond the float range")
+    return exact

@@ -1,0 +1,240 @@
+"""Truth files in both layouts, kept exact, and the exact truth check (``check_truth``).
+
+The reproducers' truth files hold decimal strings of up to 60 digits: a box bound equal to
+the nearest float of such a value may still miss it, and only an exact comparison tells.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from decimal import Decimal
+from fractions import Fraction
+from pathlib import Path
+
+import mpmath
+import numpy as np
+import pytest
+
+from _exact import MP, TWO_PI, angle_inside, mpf
+from cuikslam.log import LogFormatError
+from cuikslam.results.solution import Hypothesis, _pi_enclosure, check_truth
+from cuikslam.simulate.truth import read_truth_file
+
+REPRO = Path(__file__).parent / "data" / "repro"
+
+
+def hypothesis(pose_box: list[list[float]], landmark_box: list[list[float]]) -> Hypothesis:
+    """One pose (id 0) and one landmark ("L0") with the given boxes."""
+    return Hypothesis(
+        assignment=["L0"],
+        pose_ids=[0],
+        poses=np.array([pose_box], float),
+        landmark_ids=["L0"],
+        landmark_classes=["c"],
+        landmarks=np.array([landmark_box], float),
+    )
+
+
+def below(x: float) -> float:
+    return float(np.nextafter(x, -np.inf))
+
+
+def above(x: float) -> float:
+    return float(np.nextafter(x, np.inf))
+
+
+# --- reading ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("path", sorted(REPRO.glob("*.truth.json")), ids=lambda p: p.name)
+def test_repro_truth_files_are_read_exactly(path: Path) -> None:
+    doc = json.loads(path.read_text(encoding="utf-8"))
+    truth = read_truth_file(path)
+    assert truth.pose_ids == [int(k) for k in doc["poses"]]
+    assert truth.landmark_ids == list(doc["landmarks"])
+    assert truth.landmark_classes == [v[2] for v in doc["landmarks"].values()]
+    assert truth.assignment == doc["obs_truth"]
+    for row, exact, text in zip(
+        truth.poses_xyt, truth.exact_poses(), doc["poses"].values(), strict=True
+    ):
+        assert list(exact) == [Fraction(Decimal(t)) for t in text]
+        assert list(row) == [float(Decimal(t)) for t in text]  # nearest floats
+    for lid, (x, y, _cls) in doc["landmarks"].items():
+        assert truth.exact_landmark(lid) == (Fraction(Decimal(x)), Fraction(Decimal(y)))
+        np.testing.assert_array_equal(truth.landmark_xy(lid), [float(x), float(y)])
+
+
+def test_numbers_and_strings_mix_and_the_assignment_has_three_names(tmp_path: Path) -> None:
+    poses = {"3": [1, "0.1", 0.1], "7": ["-2.5e-3", "1E2", "-0"]}
+    landmarks = {"A": ["1", 2.0, "door"], "B": {"class": "door", "x": "0.3", "y": 4}}
+    for key in ("assignment", "obs_truth", "observation_landmark"):
+        path = tmp_path / f"{key}.json"
+        path.write_text(json.dumps({"poses": poses, "landmarks": landmarks, key: ["B", "A"]}))
+        truth = read_truth_file(path)
+        assert truth.assignment == ["B", "A"]
+        assert truth.pose_ids == [3, 7]
+        # the JSON number 0.1 is the decimal 1/10, not the float nearest to it
+        assert truth.exact_poses()[0] == (1, Fraction(1, 10), Fraction(1, 10))
+        assert truth.exact_poses()[1] == (Fraction(-25, 10_000), 100, 0)
+        assert truth.exact_landmark("B") == (Fraction(3, 10), 4)
+        assert truth.landmark_class("A") == "door"
+        assert truth.poses_xyt[0, 1] == 0.1
+
+
+@pytest.mark.parametrize(
+    ("doc", "problem"),
+    [
+        ({"poses": {}, "landmarks": {}}, "assignment"),
+        ({"poses": {}, "landmarks": {}, "obs_truth": [], "assignment": []}, "both"),
+        ({"poses": {"1": [0, 0, "nan"]}, "landmarks": {}, "obs_truth": []}, "finite"),
+        ({"poses": {"1": [0, 0, "Infinity"]}, "landmarks": {}, "obs_truth": []}, "finite"),
+        ({"poses": {"1": [0, 0, "0x10"]}, "landmarks": {}, "obs_truth": []}, "finite"),
+        ({"poses": {"1": [0, 0, "1_0"]}, "landmarks": {}, "obs_truth": []}, "finite"),
+        ({"poses": {"1": [0, 0, ""]}, "landmarks": {}, "obs_truth": []}, "finite"),
+        ({"poses": {"1": [0, 0, "1e400"]}, "landmarks": {}, "obs_truth": []}, "float range"),
+        ({"poses": {"1": [0, 0, "1e-99999999"]}, "landmarks": {}, "obs_truth": []}, "range"),
+        ({"poses": {"1": [0, 0, "1" * 3000]}, "landmarks": {}, "obs_truth": []}, "finite"),
+        ({"poses": {"1": [0, 0, None]}, "landmarks": {}, "obs_truth": []}, "finite"),
+        ({"poses": {}, "landmarks": {"L0": ["1", "2"]}, "obs_truth": []}, "class"),
+        ({"poses": {}, "landmarks": {"L0": ["1", "2", 3]}, "obs_truth": []}, "class"),
+        ({"poses": {}, "landmarks": {"L0": ["x", "2", "c"]}, "obs_truth": []}, "finite"),
+        ({"poses": {}, "landmarks": {}, "obs_truth": ["L9"]}, "obs_truth"),
+        ({"poses": {}, "landmarks": {}, "obs_truth": "L0"}, "list"),
+    ],
+)
+def test_malformed_truth_files_name_the_problem(tmp_path: Path, doc: dict, problem: str) -> None:
+    path = tmp_path / "truth.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(LogFormatError, match=problem) as caught:
+        read_truth_file(path)
+    assert caught.value.path == str(path)
+    assert "\n" not in str(caught.value)
+
+
+@pytest.mark.parametrize(
+    ("text", "problem"),
+    [
+        ('{"poses": {"1": [0, 0, 1e400]}, "landmarks": {}, "obs_truth": []}', "float range"),
+        ('{"poses": {"1": [0, 0, NaN]}, "landmarks": {}, "obs_truth": []}', "finite"),
+        ('{"poses": {"1": [0, 0, ' + "9" * 5000 + ']}, "landmarks": {}, "obs_truth": []}', "JSON"),
+    ],
+)
+def test_malformed_json_numbers(tmp_path: Path, text: str, problem: str) -> None:
+    path = tmp_path / "truth.json"
+    path.write_text(text)
+    with pytest.raises(LogFormatError, match=problem):
+        read_truth_file(path)
+
+
+def test_cli_refuses_a_bad_truth_file_in_one_line(tmp_path: Path) -> None:
+    log = tmp_path / "trip.jsonl"
+    log.write_text((REPRO / "mixed-true-refuted.jsonl").read_text())
+    bad = tmp_path / "bad.truth.json"
+    bad.write_text('{"poses": {"0": ["1", "2", "three"]}, "landmarks": {}, "obs_truth": []}')
+    result = subprocess.run(
+        [sys.executable, "-m", "cuikslam.cli.main", "solve", str(log), "--truth", str(bad)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert result.returncode == 2, result.stderr
+    assert "Traceback" not in result.stderr
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1, result.stderr
+    assert str(bad) in lines[0] and "three" in lines[0]
+
+
+# --- the exact check ---------------------------------------------------------------------
+
+
+def test_pi_enclosure_holds_pi_tightly() -> None:
+    lo, hi = _pi_enclosure()
+    assert 0 < hi - lo < Fraction(1, 10**400)
+    ctx = mpmath.MPContext()
+    ctx.prec = 2000  # finer than the enclosure (1e-409 is about 2**-1359)
+    assert ctx.mpf(lo.numerator) / lo.denominator < ctx.pi < ctx.mpf(hi.numerator) / hi.denominator
+
+
+def test_a_decimal_truth_just_beyond_a_float_bound_is_a_miss() -> None:
+    x = "0.496379864273972471719852746561494962795410728114125666984801"
+    near = float(x)  # the float nearest to x: a bound equal to it may exclude x
+    if Fraction(near) < Fraction(x):
+        tight, wide = [below(near), near], [below(near), above(near)]
+    else:
+        tight, wide = [near, above(near)], [below(near), above(near)]
+    h = hypothesis([tight, [0, 1], [0, 0]], [[0, 1], [0, 1]])
+    report = check_truth(h, [0], [[x, "0.5", "0"]])
+    assert len(report.misses) == 1
+    assert report.misses[0].startswith("pose 0 x=0.49637986427397247171985")
+    assert report.misses[0].endswith(f"not in {tight}")
+    # with the nearest float the check passes: this is what the exact comparison adds
+    assert check_truth(h, [0], [[near, 0.5, 0.0]]).ok
+    h = hypothesis([wide, [0, 1], [0, 0]], [[0, 1], [0, 1]])
+    assert check_truth(h, [0], [[x, "0.5", "0"]]).ok
+
+
+def test_landmarks_are_compared_exactly_too() -> None:
+    h = hypothesis([[0, 1], [0, 1], [0, 0]], [[0.1, 0.2], [0.1, 0.2]])
+    # the float 0.1 is above the decimal 0.1: the decimal misses [0.1, 0.2], the float is in
+    report = check_truth(h, [0], [[0, 0, 0]], {"L0": (Fraction(1, 10), 0.1)})
+    assert report.misses == ["landmark L0 x=0.1 (decimal) not in [0.1, 0.2]"]
+    assert report.checked == 5
+    # the float 0.2 is 0.20000000000000001110...: a decimal just beyond it misses
+    assert check_truth(h, [0], [[0, 0, 0]], {"L0": (0.1, "0.2")}).ok
+    beyond = "0.200000000000000011103"
+    assert check_truth(h, [0], [[0, 0, 0]], {"L0": (0.1, beyond)}).misses == [
+        f"landmark L0 y={beyond} (decimal) not in [0.1, 0.2]"
+    ]
+
+
+@pytest.mark.parametrize(
+    ("theta_box", "inside"),
+    [
+        (["2pi", "2pi"], False),  # fl(2π) < 2π: heading 0 is not in [fl(2π), fl(2π)]
+        (["2pi", "2pi+"], True),
+        (["-2pi", "-2pi"], False),  # -fl(2π) > -2π
+        (["-2pi+", "-2pi"], True),
+    ],
+)
+def test_headings_are_compared_modulo_an_exact_two_pi(theta_box: list, inside: bool) -> None:
+    two_pi = float(TWO_PI)
+    assert mpf(two_pi) < TWO_PI < mpf(above(two_pi))
+    named = {"2pi": two_pi, "2pi+": above(two_pi), "-2pi": -two_pi, "-2pi+": -above(two_pi)}
+    box = [named[b] for b in theta_box]
+    assert angle_inside(box[0], box[1], mpf(0.0)) is inside  # the reference agrees
+    h = hypothesis([[0, 0], [0, 0], box], [[0, 1], [0, 1]])
+    report = check_truth(h, [0], [[0, 0, 0]])
+    assert report.ok is inside
+    if not inside:
+        assert report.misses == [f"pose 0 theta=0.0 not in {box} (mod 2pi)"]
+
+
+@pytest.mark.parametrize("k", [-(10**9), -3, -1, 1, 2, 7, 10**6, 10**9])
+def test_headings_many_turns_away(k: int) -> None:
+    """A heading k turns away: the box from mpmath's 2πk, one ulp each side, and beside it."""
+    truth = "0.25"
+    centre = MP.mpf("0.25") + k * TWO_PI
+    lo = float(centre)
+    lo = lo if mpf(lo) <= centre else below(lo)
+    hi = above(lo)
+    assert mpf(lo) <= centre <= mpf(hi)
+    for box, inside in [([lo, hi], True), ([below(lo), below(below(lo))], False)]:
+        box = sorted(box)
+        assert angle_inside(box[0], box[1], MP.mpf("0.25")) is inside
+        h = hypothesis([[0, 0], [0, 0], box], [[0, 1], [0, 1]])
+        assert check_truth(h, [0], [[0, 0, truth]]).ok is inside
+
+
+def test_wide_heading_boxes_contain_every_heading() -> None:
+    h = hypothesis([[0, 0], [0, 0], [-3.1, 3.1]], [[0, 1], [0, 1]])  # misses (3.1, 2π - 3.1)
+    assert not check_truth(h, [0], [[0, 0, "3.15"]]).ok
+    assert check_truth(h, [0], [[0, 0, "3.2"]]).ok  # 3.2 - 2π = -3.083...
+    assert check_truth(h, [0], [[0, 0, "-9.3"]]).ok  # -9.3 + 2π = -3.016...
+    assert not check_truth(h, [0], [[0, 0, "-9.4"]]).ok  # -9.4 + 4π = 3.166...
+    full = hypothesis([[0, 0], [0, 0], [0.0, 6.3]], [[0, 1], [0, 1]])
+    assert check_truth(full, [0], [[0, 0, "12345.678"]]).ok
+    empty = hypothesis([[0, 0], [0, 0], [1.0, 0.0]], [[0, 1], [0, 1]])
+    assert not check_truth(empty, [0], [[0, 0, "0.5"]]).ok
