@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 from cuikslam.hypotheses import solve_unknown
@@ -74,9 +74,9 @@ def test_true_partition_survives_and_contains_truth(world: dict) -> None:
         step_length=(0.5, 1.5),
         unknown=True,
     )
-    solution = solve_unknown(log, consistency="hull", max_hypotheses=5_000)
-    if not solution.complete:
-        return  # the guarantee is about complete searches; incompleteness is reported
+    solution = solve_unknown(log, consistency="hull", max_nodes=20_000)
+    assume(solution.complete)  # the guarantee is about complete searches
+    assert solution.statistics["survivors"] == len(solution.hypotheses)
     index = true_survivor(solution, truth)
     assert index >= 0, "the true correspondence was discarded"
     assert_truth_inside(solution, truth, index)
@@ -91,7 +91,7 @@ def test_most_random_searches_complete() -> None:
         log, _ = simulate_random_world(
             seed=seed, n_poses=10, n_landmarks=4, size=(16.0, 12.0), unknown=True
         )
-        complete += solve_unknown(log, consistency="hull", max_hypotheses=5_000).complete
+        complete += solve_unknown(log, consistency="hull", max_nodes=20_000).complete
     assert complete >= 15
 
 
@@ -121,18 +121,18 @@ ambiguous_worlds = st.fixed_dictionaries(
 )
 @given(ambiguous_worlds)
 def test_strengthening_during_the_search_keeps_the_truth(world: dict) -> None:
-    """lp after every branch point: the true partition survives, no new partition appears."""
+    """lp after the first decisions: the true partition survives, no new partition appears."""
     log, truth = simulate_random_world(
         seed=world["seed"], n_poses=world["n_poses"], n_landmarks=6,
         classes=("door", "corridor"), size=(20.0, 15.0), max_range=6.0, fov=math.pi,
         odometry_bounds=(0.15, 0.3), observation_bounds=(0.1, 0.05), unknown=True,
     )  # fmt: skip
-    hull = solve_unknown(log, consistency="hull", max_hypotheses=400)
+    hull = solve_unknown(log, consistency="hull", max_nodes=2_000)
     during = solve_unknown(
-        log, consistency="lp", max_hypotheses=400, strengthen_limit=0, strengthen_during=30
+        log, consistency="lp", max_nodes=2_000, strengthen_limit=0, strengthen_during=3
     )
-    if not (hull.complete and during.complete):
-        return
+    assume(hull.complete and during.complete)
+    assume(hull.statistics["survivors"] == len(hull.hypotheses))  # every one reported
     index = true_survivor(during, truth)
     assert index >= 0, "the true correspondence was discarded"
     assert_truth_inside(during, truth, index)
@@ -144,7 +144,7 @@ def test_strengthening_during_the_search_keeps_the_truth(world: dict) -> None:
 def test_strengthening_during_the_search_prunes_the_paper() -> None:
     log, truth = simulate_paper(seed=0, unknown=True)
     plain = solve_unknown(log, consistency="lp", strengthen_limit=0)
-    during = solve_unknown(log, consistency="lp", strengthen_limit=0, strengthen_during=20)
+    during = solve_unknown(log, consistency="lp", strengthen_limit=0, strengthen_during=6)
     assert during.complete
     assert len(during.hypotheses) < 0.9 * len(plain.hypotheses)
     assert true_survivor(during, truth) == 0
@@ -204,13 +204,30 @@ def test_mixed_log_keeps_named_observations() -> None:
     assert true_survivor(solution, truth) >= 0
 
 
-def test_limit_marks_the_result_incomplete() -> None:
+def test_max_hypotheses_limits_the_report_not_the_search() -> None:
     log, _ = simulate_paper(seed=0, unknown=True)
+    everything = solve_unknown(log, consistency="hull")
     solution = solve_unknown(log, consistency="hull", max_hypotheses=3)
+    assert solution.complete
+    assert len(solution.hypotheses) == 3
+    assert solution.statistics["survivors"] == len(everything.hypotheses) > 3
+    assert [h.assignment for h in solution.hypotheses] == [
+        h.assignment for h in everything.hypotheses[:3]
+    ]
+    assert any("best-ranked are reported" in m for m in solution.messages)
+
+
+def test_a_node_budget_stops_the_search_with_an_account() -> None:
+    log, _ = simulate_paper(seed=0, unknown=True)
+    solution = solve_unknown(log, consistency="hull", max_nodes=50)
     assert not solution.complete
-    assert len(solution.hypotheses) <= 3
-    assert solution.statistics["dropped_by_limit"] > 0
-    assert any("INCOMPLETE" in m for m in solution.messages)
+    assert solution.statistics["branch_points"] == 50
+    assert solution.statistics["unexplored_subtrees"] > 0
+    assert 0 < solution.statistics["explored_fraction"] < 1
+    assert any("INCOMPLETE" in m and "unexplored" in m for m in solution.messages)
+    seen: list[list[int]] = []
+    streamed = solve_unknown(log, consistency="hull", on_survivor=seen.append)
+    assert len(seen) == streamed.statistics["survivors"] == len(streamed.hypotheses)
 
 
 def test_negative_information_refutes_a_duplicate_landmark() -> None:

@@ -12,21 +12,31 @@ import numpy as np
 import pytest
 
 from cuikslam.graph.encoding import KIND, NO_FACTOR, OBSERVATION, ODOMETRY
-from cuikslam.hypotheses import _shared, solve_unknown
-from cuikslam.hypotheses._gates import gate, gate_many
+from cuikslam.hypotheses import _shared, search, solve_unknown
+from cuikslam.hypotheses._gates import gate
 from cuikslam.hypotheses._shared import EMPTY_OVERLAY, Overlay, SharedGraph
-from cuikslam.hypotheses.search import _Search
+from cuikslam.hypotheses.problem import build_problem
+from cuikslam.hypotheses.search import Budget, Explorer, Node, explore
 from cuikslam.narrowing._factors import fresh_memory
 from cuikslam.narrowing._propagate import INCONSISTENT, propagate_arrays, propagate_buffered
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL
 from cuikslam.simulate import simulate_paper, simulate_random_world
 
 
-def _full_copy_child(graph: SharedGraph, ids: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+def _explored(log, max_nodes: int = 10**6) -> tuple[Explorer, Node, object]:
+    """A hull-level search of ``log``, stopped after ``max_nodes`` expansions."""
+    explorer = Explorer(build_problem(log), DEFAULT_RTOL, "hull", 0)
+    root = explorer.root()
+    assert root is not None
+    return explorer, root, explore(explorer, root, Budget(max_nodes=max_nodes), 10**6)
+
+
+def _full_copy_child(
+    graph: SharedGraph, overlay: Overlay, ids: np.ndarray
+) -> tuple[int, np.ndarray, np.ndarray]:
     """The child the old way: a private copy of the parent plus rows ``ids``, propagated."""
-    o = graph.current
-    child_rows = np.union1d(o.rows, ids[~graph.in_base[ids]])
-    lo, hi, arrays = graph.standalone(Overlay(o.idx, o.lo, o.hi, child_rows))
+    child_rows = np.union1d(overlay.rows, ids[~graph.in_base[ids]])
+    lo, hi, arrays = graph.standalone(Overlay(overlay.idx, overlay.lo, overlay.hi, child_rows))
     table_ids = np.union1d(np.flatnonzero(graph.in_base[: graph.n_rows]), child_rows)
     touched = np.searchsorted(table_ids, ids)
     status, _ = propagate_arrays(
@@ -41,14 +51,16 @@ def _same_bits(a: np.ndarray, b: np.ndarray) -> bool:
 
 
 def test_every_child_equals_a_full_copy(monkeypatch: pytest.MonkeyPatch) -> None:
-    """During whole searches (maintenance forced often), compare every trial child."""
+    """During whole searches (maintenance forced often), compare every child."""
     monkeypatch.setattr(_shared, "MIN_MAINTENANCE_LOAD", 8)
+    monkeypatch.setattr(search, "MAINTAIN_EVERY", 16)
     checked = {"children": 0, "empty": 0}
-    original = SharedGraph.trial
+    original = SharedGraph.add_rows
 
-    def checked_trial(graph: SharedGraph, ids: np.ndarray) -> Overlay | None:
-        status, lo, hi = _full_copy_child(graph, ids)
-        child = original(graph, ids)
+    def checked_add_rows(graph: SharedGraph, overlay: Overlay, ids: np.ndarray) -> Overlay | None:
+        parent = graph.materialize(overlay)
+        status, lo, hi = _full_copy_child(graph, overlay, ids)
+        child = original(graph, overlay, ids)
         assert (child is None) == (status == INCONSISTENT)
         if child is None:
             checked["empty"] += 1
@@ -56,17 +68,19 @@ def test_every_child_equals_a_full_copy(monkeypatch: pytest.MonkeyPatch) -> None
             mine_lo, mine_hi = graph.materialize(child)
             assert _same_bits(mine_lo, lo) and _same_bits(mine_hi, hi)
             checked["children"] += 1
-        parent_lo, parent_hi = graph.materialize(graph.current)
-        assert _same_bits(graph.lo, parent_lo) and _same_bits(graph.hi, parent_hi)
+        after = graph.materialize(overlay)  # the parent is never changed
+        assert _same_bits(after[0], parent[0]) and _same_bits(after[1], parent[1])
+        working = graph.materialize(graph.current)  # the cache holds what it says it holds
+        assert _same_bits(graph.lo, working[0]) and _same_bits(graph.hi, working[1])
         return child
 
-    monkeypatch.setattr(SharedGraph, "trial", checked_trial)
+    monkeypatch.setattr(SharedGraph, "add_rows", checked_add_rows)
     solve_unknown(simulate_paper(seed=0, unknown=True)[0], consistency="hull")
     for seed, n_poses, size in ((1, 30, (30.0, 20.0)), (2, 40, (60.0, 45.0))):
         log, _ = simulate_random_world(
             seed=seed, n_poses=n_poses, n_landmarks=6, size=size, unknown=True
         )
-        solve_unknown(log, consistency="hull", max_hypotheses=40)
+        solve_unknown(log, consistency="hull", max_nodes=400)
     assert checked["children"] > 1000 and checked["empty"] > 100
 
 
@@ -85,7 +99,7 @@ def test_maintenance_changes_no_result(
         seed=seed, n_poses=n_poses, n_landmarks=6, size=size, unknown=True
     )
     monkeypatch.setattr(_shared, "MIN_MAINTENANCE_LOAD", 10**12)
-    never = solve_unknown(log, consistency="hull", max_hypotheses=30)
+    never = solve_unknown(log, consistency="hull", max_nodes=300)
     calls = {"rebase": 0, "compact": 0}
     for name in calls:
         original = getattr(SharedGraph, name)
@@ -96,25 +110,32 @@ def test_maintenance_changes_no_result(
 
         monkeypatch.setattr(SharedGraph, name, counted)
     monkeypatch.setattr(_shared, "MIN_MAINTENANCE_LOAD", 4)
-    often = solve_unknown(log, consistency="hull", max_hypotheses=30)
+    monkeypatch.setattr(search, "MAINTAIN_EVERY", 4)
+    often = solve_unknown(log, consistency="hull", max_nodes=300)
     assert len(never.hypotheses) > 10
     assert calls["rebase"] > 5 and calls["compact"] > 2
     assert _fingerprint(never) == _fingerprint(often)
 
 
-def test_live_branches_hold_no_full_copies() -> None:
+def test_pending_nodes_hold_no_full_copies() -> None:
     log, _ = simulate_random_world(
         seed=1, n_poses=80, n_landmarks=10, size=(30.0, 20.0), unknown=True
     )
-    search = _Search(log, DEFAULT_RTOL, 32)
-    search.run(None)
-    graph = search.graph
-    overlays = [b.overlay for b in search.branches]
+    explorer, _, outcome = _explored(log, max_nodes=300)
+    graph = explorer.graph
+    overlays = [n.overlay for n in outcome.unexplored + outcome.survivors]
     assert len(overlays) > 16
     n_vars = len(graph.base_lo)
     full_copy_bytes = 2 * graph.base_lo.nbytes + graph.n_rows * graph.rows[0].nbytes
-    assert max(len(o.idx) for o in overlays) < n_vars / 10
-    assert sum(o.nbytes for o in overlays) < full_copy_bytes * len(overlays) / 20
+    assert max(len(o.idx) for o in overlays) < n_vars / 2
+    assert max(o.nbytes for o in overlays) < full_copy_bytes / 4
+
+
+def test_the_frontier_does_not_grow_with_the_survivors() -> None:
+    """Depth first: the pending nodes are one path's siblings, however many survive."""
+    explorer, _, outcome = _explored(simulate_paper(seed=0, unknown=True)[0])
+    assert explorer.stats.survivors == len(outcome.survivors) > 400
+    assert explorer.stats.peak_frontier <= len(explorer.problem.decisions) + 1
 
 
 def test_rebase_moves_the_common_bounds_and_keeps_every_branch() -> None:
@@ -142,16 +163,15 @@ def test_rebase_moves_the_common_bounds_and_keeps_every_branch() -> None:
 def test_buffered_propagation_leaves_its_buffers_clean() -> None:
     """Many small propagations share work arrays: each must leave them as it found them."""
     log, _ = simulate_paper(seed=0, unknown=False)
-    search = _Search(log, DEFAULT_RTOL, 10)
-    search.run(None)
-    lo, hi, arrays = search.graph.standalone(search.branches[0].overlay)
+    explorer, root, _ = _explored(log)
+    lo, hi, arrays = explorer.graph.standalone(root.overlay)
     graph = (arrays.factors, arrays.head, arrays.entry_factor, arrays.entry_next)
     n = len(arrays.factors)
     everything = np.arange(n)
     queue, state = np.empty(n + 1, dtype=np.int64), np.zeros(n, dtype=np.int8)
     memory, applied = fresh_memory(n), np.empty(n, dtype=np.int64)
     wide_lo, wide_hi = lo - 5.0, hi + 5.0
-    x0 = min(search.layout.pose_x.values())
+    x0 = min(explorer.problem.pose_x.values())
     empty_hi = np.where(np.arange(len(lo)) == x0, wide_lo - 1.0, wide_hi)
     for start_hi in (wide_hi, empty_hi):
         expected = (wide_lo.copy(), start_hi.copy())
@@ -170,9 +190,8 @@ def test_buffered_propagation_leaves_its_buffers_clean() -> None:
 
 def test_switched_off_rows_are_never_applied() -> None:
     log, _ = simulate_paper(seed=0, unknown=False)
-    search = _Search(log, DEFAULT_RTOL, 10)
-    search.run(None)
-    lo, hi, arrays = search.graph.standalone(search.branches[0].overlay)
+    explorer, root, _ = _explored(log)
+    lo, hi, arrays = explorer.graph.standalone(root.overlay)
     factors = arrays.factors.copy()
     factors[factors[:, KIND] == OBSERVATION, KIND] = NO_FACTOR
     wide = (lo - 50.0, hi + 50.0)
@@ -182,24 +201,18 @@ def test_switched_off_rows_are_never_applied() -> None:
         np.arange(len(factors)), DEFAULT_RTOL, 1, 2**62,
     )  # fmt: skip
     assert count >= np.count_nonzero(factors[:, KIND] == ODOMETRY)
-    for x in search.layout.user_landmark_x.values():  # only observations touch landmarks
+    for x in explorer.problem.named_x:  # only observations touch landmarks
         assert out_lo[x] == wide[0][x] and out_hi[x] == wide[1][x]
 
 
 def test_gate_many_is_gate_per_landmark() -> None:
     log, _ = simulate_paper(seed=0, unknown=True)
-    search = _Search(log, DEFAULT_RTOL, 50)
-    search.run(None)
-    graph = search.graph
-    branch = search.branches[0]
-    graph.checkout(branch.overlay)
-    xs = np.array(branch.landmark_x, dtype=np.int64)
-    for index, f in list(search.layout.record_factor.items())[:20]:
-        record = log.records[index]
-        if not hasattr(record, "bearing"):
-            continue
-        bearing, distance = search.layout.factor_measurements[f]
-        pose_x = search.layout.pose_x[record.pose]
-        many = gate_many(graph.lo, graph.hi, pose_x, xs, bearing, distance)
-        one = [gate(graph.lo, graph.hi, pose_x, int(x), bearing, distance) for x in xs]
+    explorer, _, outcome = _explored(log)
+    graph = explorer.graph
+    node = outcome.survivors[0]
+    lo, hi = graph.materialize(node.overlay)
+    xs = explorer.landmark_xs(node)
+    for d in explorer.problem.decisions:
+        many = graph.gate(node.overlay, d.pose_x, xs, d.bearing_var, d.range_var)
+        one = [gate(lo, hi, d.pose_x, int(x), d.bearing_var, d.range_var) for x in xs]
         assert list(many) == one

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cuikslam.graph.encoding import N_SLOTS, OBSERVATION, ODOMETRY, link_factor
+from cuikslam.interval._periodic import periodic_meet
 from cuikslam.interval._rounding import PI_HI
 from cuikslam.log.records import (
     Bounds,
@@ -86,8 +87,11 @@ class KinematicGraph:
     def add_pose_prior(self, pose: int, x: Bounds, y: Bounds, theta: Bounds) -> None:
         """A box known to contain the pose."""
         v = self.add_pose(pose)
-        for i, b in enumerate((x, y, theta)):
-            self._narrow_initial(v + i, b)
+        self._narrow_initial(v, x)
+        self._narrow_initial(v + 1, y)
+        # headings meet modulo 2 pi: [0.1, 0.2] and [6.38, 6.48] are the same prior
+        lo, hi = periodic_meet(self._lo[v + 2], self._hi[v + 2], float(theta[0]), float(theta[1]))
+        self._lo[v + 2], self._hi[v + 2] = lo, hi
 
     def add_landmark_prior(
         self, landmark: str, x: Bounds, y: Bounds, landmark_class: str = ""

@@ -32,6 +32,7 @@ import numpy as np
 
 from cuikslam.graph.encoding import KIND, N_SLOTS, NO_FACTOR
 from cuikslam.hypotheses import _kernels as k
+from cuikslam.hypotheses._gates import gate_many, pairs_within_reach
 from cuikslam.narrowing._factors import fresh_memory
 from cuikslam.narrowing._propagate import INCONSISTENT
 from cuikslam.narrowing.consistency import Arrays
@@ -67,10 +68,11 @@ EMPTY_OVERLAY = Overlay(_NO_INT, np.zeros(0), np.zeros(0), _NO_INT)
 
 
 class SharedGraph:
-    """Base boxes, the factor pool, and the working arrays of the checked-out branch.
+    """Base boxes, the factor pool, and working arrays for one branch at a time.
 
-    ``lo``/``hi`` are the working arrays that gates and kernels read: base + the
-    checked-out overlay. ``ranked`` are the variables whose widths rank branches (poses).
+    Every branch operation takes the branch's :class:`Overlay` as an argument and returns
+    a new overlay; the working arrays (``lo``/``hi``: base + one overlay) are an internal
+    cache. ``ranked`` are the variables whose widths rank branches (poses).
     """
 
     def __init__(
@@ -146,8 +148,10 @@ class SharedGraph:
                 e = self.entry_next[e]
         return np.array(sorted(found), dtype=np.int64)
 
-    # ------------------------------------------------------------- checking out
-    def checkout(self, overlay: Overlay) -> None:
+    # ------------------------------------------------------------- branch operations
+    # Every operation names the branch (overlay) it works on; which one the working arrays
+    # hold is private, so no caller can act on another branch by mistake.
+    def _checkout(self, overlay: Overlay) -> None:
         """Make the working arrays hold the branch of ``overlay``."""
         if overlay is self.current:
             return
@@ -161,18 +165,19 @@ class SharedGraph:
 
     def release(self) -> None:
         """Working arrays back to the base."""
-        self.checkout(EMPTY_OVERLAY)
+        self._checkout(EMPTY_OVERLAY)
 
-    def _apply(
-        self, ids: np.ndarray, touched: np.ndarray, narrowed: np.ndarray, keep: bool
-    ) -> Overlay | None:
-        """See :func:`._kernels.apply`; the overlay shares the current one's unchanged arrays."""
+    def _apply(self, ids: np.ndarray, touched: np.ndarray, narrowed: np.ndarray) -> Overlay | None:
+        """See :func:`._kernels.apply`; the overlay shares the current one's unchanged arrays.
+
+        The working arrays are put back to the checked-out branch afterwards.
+        """
         cur = self.current
         status, applications, n_changed, idx, lo, hi, rows = k.apply(
             self.lo, self.hi, self._saved_lo, self._saved_hi, self.rows, self.kinds,
             self.in_base, self.head, self.entry_factor, self.entry_next, self._queue,
             self._state, self._memory, self._applied, self._mark, cur.idx, cur.rows, ids,
-            touched, narrowed, self.rtol, self.max_rounds, keep,
+            touched, narrowed, self.rtol, self.max_rounds, False,
         )  # fmt: skip
         self.applications += applications
         if status == INCONSISTENT:
@@ -181,31 +186,49 @@ class SharedGraph:
             idx, lo, hi = cur.idx, cur.lo, cur.hi
         if len(rows) == len(cur.rows):
             rows = cur.rows
-        overlay = Overlay(idx, lo, hi, rows)
-        if keep:
-            self.current = overlay
-        return overlay
+        return Overlay(idx, lo, hi, rows)
 
-    def trial(self, ids: np.ndarray) -> Overlay | None:
-        """Overlay of a child: the checked-out branch plus rows ``ids``, propagated from them;
-        None when that is proven empty. The checked-out branch is left as it was."""
-        return self._apply(ids, ids, _NO_INT, keep=False)
+    def add_rows(self, overlay: Overlay, ids: np.ndarray) -> Overlay | None:
+        """The branch of ``overlay`` plus pool rows ``ids``, propagated from them.
 
-    def extend(self, ids: np.ndarray) -> Overlay | None:
-        """Add rows ``ids`` to the checked-out branch and propagate from them; its new
-        overlay (now checked out), or None when proven empty (then nothing changed)."""
-        return self._apply(ids, ids, _NO_INT, keep=True)
+        Returns the new branch's overlay, or None when its constraints contract to empty
+        (a proof). ``overlay`` itself is never changed.
+        """
+        self._checkout(overlay)
+        return self._apply(ids, ids, _NO_INT)
 
-    def restrict(self, variables: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> Overlay | None:
-        """Intersect ``variables`` of the checked-out branch with [lo, hi] and propagate;
-        its new overlay (now checked out), or None when proven empty."""
-        self.lo[variables] = np.maximum(self.lo[variables], lo)
-        self.hi[variables] = np.minimum(self.hi[variables], hi)
-        if np.any(self.lo[variables] > self.hi[variables]):
-            self.lo[variables] = self._saved_lo[variables]
-            self.hi[variables] = self._saved_hi[variables]
+    def restrict(
+        self, overlay: Overlay, variables: np.ndarray, lo: np.ndarray, hi: np.ndarray
+    ) -> Overlay | None:
+        """The branch of ``overlay`` with ``variables`` intersected with [lo, hi] (plain
+        intervals: not for headings), propagated; None when proven empty."""
+        self._checkout(overlay)
+        new_lo = np.maximum(self.lo[variables], lo)
+        new_hi = np.minimum(self.hi[variables], hi)
+        if np.any(new_lo > new_hi):
             return None
-        return self._apply(_NO_INT, self.factors_of(variables), variables, keep=True)
+        self.lo[variables], self.hi[variables] = new_lo, new_hi
+        return self._apply(_NO_INT, self.factors_of(variables), variables)
+
+    def gate(
+        self, overlay: Overlay, pose_x: int, landmark_xs: np.ndarray, bearing: int, distance: int
+    ) -> np.ndarray:
+        """:func:`._gates.gate_many` on the boxes of the branch of ``overlay``."""
+        self._checkout(overlay)
+        return gate_many(self.lo, self.hi, pose_x, landmark_xs, bearing, distance)
+
+    def pairs_within_reach(
+        self,
+        overlay: Overlay,
+        pose_xs: np.ndarray,
+        radius_vars: np.ndarray,
+        landmark_xs: np.ndarray,
+        seen: np.ndarray,
+    ) -> np.ndarray:
+        """:func:`._gates.pairs_within_reach` on the boxes of the branch of ``overlay``."""
+        self._checkout(overlay)
+        radii = self.lo[radius_vars]
+        return pairs_within_reach(self.lo, self.hi, pose_xs, radii, landmark_xs, seen)
 
     # ------------------------------------------------------------- reading
     def values(self, overlay: Overlay, variables: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -238,7 +261,7 @@ class SharedGraph:
         return Overlay(idx, lo[idx], hi[idx], rows)
 
     def _base_widths(self) -> tuple[int, float]:
-        widths = (self.base_hi - self.base_lo)[self._ranked]
+        widths = self.base_hi[self._ranked] - self.base_lo[self._ranked]
         finite = np.isfinite(widths)
         return int(np.count_nonzero(~finite)), float(np.sum(widths[finite]))
 

@@ -1,0 +1,279 @@
+"""A log as a correspondence problem: variables, the constraints every hypothesis shares,
+and the decisions that tell hypotheses apart.
+
+Everything that does not depend on the correspondence is built once, at the *root*:
+pose priors, odometry, observations that name their landmark, landmark priors, and each
+unlabelled observation's factor on its own *slot* (the landmark it would create if it saw
+a new one). A hypothesis is then a sequence of *decisions*, one per unlabelled
+observation in log order: the landmark it sees is a named landmark, an anonymous landmark
+an earlier decision created, or new (its slot). Named landmarks exist from the root, so a
+name that first appears late in the log is a candidate from the first decision on.
+
+Landmarks are numbered: the named ones first (in order of first appearance), then the
+anonymous ones in order of creation, so two hypotheses that differ only in the names of
+new landmarks cannot arise.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cuikslam.graph.encoding import (
+    ANGLE,
+    KIND,
+    LENGTH,
+    N_SLOTS,
+    OBSERVATION,
+    ODOMETRY,
+    TA,
+    TB,
+    UNSEEN,
+    XA,
+    XB,
+    YA,
+    YB,
+)
+from cuikslam.interval._periodic import periodic_meet
+from cuikslam.interval._rounding import PI_HI, TWO_PI_HI
+from cuikslam.log.records import LandmarkPrior, Log, Observation, Odometry, PosePrior
+
+__all__ = ["Decision", "Problem", "observation_rows", "unseen_rows"]
+
+_ANY = (-math.inf, math.inf)
+
+
+@dataclass(frozen=True)
+class Decision:
+    """One unlabelled observation: which landmark it sees is decided by the search."""
+
+    record: int
+    """Index of the observation in ``Log.records``."""
+    position: int
+    """Index among all observations (the hypothesis' assignment is in this order)."""
+    pose: int
+    pose_x: int
+    bearing_var: int
+    range_var: int
+    slot_x: int
+    """x variable of the landmark it creates when it sees a new one."""
+    landmark_class: str
+    completes_scan: bool
+    """True when it is the last unlabelled observation of its pose."""
+
+
+@dataclass
+class Problem:
+    """Variables and constraints of a log, shared by every correspondence hypothesis."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    root_rows: np.ndarray
+    """Factor rows that hold in every hypothesis."""
+    pose_x: dict[int, int]
+    named: list[str]
+    """Ids of the named landmarks, landmark numbers 0..len-1."""
+    named_x: np.ndarray
+    named_class: list[str]
+    decisions: list[Decision]
+    seen_named: dict[int, set[int]]
+    """Pose -> numbers of the named landmarks its named observations see."""
+    named_assignment: dict[int, int]
+    """Observation position -> landmark number, for observations that name their landmark."""
+    first_seen: list[int]
+    """Record index of the first appearance of each named landmark."""
+    has_sensor: bool
+    radius_var: dict[int, int] = field(default_factory=dict)
+    arc_var: int = -1
+    n_observations: int = 0
+
+    @property
+    def ranked_vars(self) -> np.ndarray:
+        """Pose variables, whose widths rank hypotheses."""
+        xs = np.array(sorted(self.pose_x.values()), dtype=np.int64)
+        return np.sort(np.concatenate([xs, xs + 1, xs + 2]))
+
+    def complete_at_root(self) -> list[int]:
+        """Poses without unlabelled observations: their scans are known from the start."""
+        undecided = {d.pose for d in self.decisions}
+        return [p for p in self.pose_x if p not in undecided]
+
+    def completed_before(self, k: int) -> list[int]:
+        """Poses whose scans are complete before decision ``k``."""
+        done = self.complete_at_root()
+        return done + [d.pose for d in self.decisions[:k] if d.completes_scan]
+
+
+class _Builder:
+    def __init__(self) -> None:
+        self.lo: list[float] = []
+        self.hi: list[float] = []
+
+    def new(self, *bounds: tuple[float, float]) -> int:
+        first = len(self.lo)
+        for lo, hi in bounds:
+            self.lo.append(float(lo))
+            self.hi.append(float(hi))
+        return first
+
+    def meet(self, var: int, bounds: tuple[float, float]) -> None:
+        self.lo[var] = max(self.lo[var], float(bounds[0]))
+        self.hi[var] = min(self.hi[var], float(bounds[1]))
+
+    def meet_angle(self, var: int, bounds: tuple[float, float]) -> None:
+        """Headings meet modulo 2 pi: [0.1, 0.2] and [6.38, 6.48] are the same prior."""
+        lo, hi = periodic_meet(self.lo[var], self.hi[var], float(bounds[0]), float(bounds[1]))
+        self.lo[var], self.hi[var] = lo, hi
+
+
+def _length(bounds: tuple[float, float] | None) -> tuple[float, float]:
+    """A range or distance: never below 0 (a -0.0 lower bound becomes 0.0)."""
+    if bounds is None:
+        return (0.0, math.inf)
+    return (max(0.0, float(bounds[0])), float(bounds[1]))
+
+
+def build_problem(log: Log) -> Problem:
+    """Lay out the variables of ``log`` and the factor rows every hypothesis shares."""
+    b = _Builder()
+    pose_x: dict[int, int] = {}
+    named: dict[str, int] = {}
+    named_class: list[str] = []
+    first_seen: list[int] = []
+    rows: list[tuple[int, ...]] = []
+    pending: list[tuple[int, Observation, int, int, int]] = []
+    seen_named: dict[int, set[int]] = {}
+    named_assignment: dict[int, int] = {}
+
+    def pose(p: int) -> int:
+        if p not in pose_x:
+            pose_x[p] = b.new(_ANY, _ANY, _ANY)
+        return pose_x[p]
+
+    def landmark(name: str, cls: str, index: int) -> int:
+        if name not in named:
+            named[name] = len(named)
+            named_class.append(cls)
+            first_seen.append(index)
+            named_x.append(b.new(_ANY, _ANY))
+        return named[name]
+
+    named_x: list[int] = []
+    position = 0
+    for index, record in enumerate(log.records):
+        if isinstance(record, PosePrior):
+            x = pose(record.pose)
+            b.meet(x, record.x)
+            b.meet(x + 1, record.y)
+            b.meet_angle(x + 2, record.theta)
+        elif isinstance(record, LandmarkPrior):
+            n = landmark(record.landmark, record.landmark_class, index)
+            b.meet(named_x[n], record.x)
+            b.meet(named_x[n] + 1, record.y)
+        elif isinstance(record, Odometry):
+            a, c = pose(record.source), pose(record.target)
+            m = b.new(record.turn, _length(record.distance))
+            rows.append((ODOMETRY, a, a + 1, a + 2, c, c + 1, c + 2, m, m + 1))
+        elif isinstance(record, Observation):
+            a = pose(record.pose)
+            bearing = (-PI_HI, PI_HI) if record.bearing is None else record.bearing
+            m = b.new(bearing, _length(record.range))
+            if record.landmark is None:
+                slot = b.new(_ANY, _ANY)
+                rows.append((OBSERVATION, a, a + 1, a + 2, slot, slot + 1, -1, m, m + 1))
+                pending.append((index, record, position, m, slot))
+            else:
+                n = landmark(record.landmark, record.landmark_class, index)
+                lx = named_x[n]
+                rows.append((OBSERVATION, a, a + 1, a + 2, lx, lx + 1, -1, m, m + 1))
+                seen_named.setdefault(record.pose, set()).add(n)
+                named_assignment[position] = n
+            position += 1
+    last_decision: dict[int, int] = {}
+    for k, (_, record, _, _, _) in enumerate(pending):
+        last_decision[record.pose] = k
+    decisions = [
+        Decision(
+            record=index,
+            position=pos,
+            pose=record.pose,
+            pose_x=pose_x[record.pose],
+            bearing_var=m,
+            range_var=m + 1,
+            slot_x=slot,
+            landmark_class=record.landmark_class,
+            completes_scan=last_decision[record.pose] == k,
+        )
+        for k, (index, record, pos, m, slot) in enumerate(pending)
+    ]
+    problem = Problem(
+        lo=np.zeros(0),
+        hi=np.zeros(0),
+        root_rows=np.array(rows, dtype=np.int64).reshape(-1, 1 + N_SLOTS),
+        pose_x=pose_x,
+        named=list(named),
+        named_x=np.array(named_x, dtype=np.int64),
+        named_class=named_class,
+        decisions=decisions,
+        seen_named=seen_named,
+        named_assignment=named_assignment,
+        first_seen=first_seen,
+        has_sensor=log.sensor is not None,
+        n_observations=position,
+    )
+    if log.sensor is not None:
+        _add_sensor_variables(problem, b, log)
+    problem.lo = np.array(b.lo, dtype=np.float64)
+    problem.hi = np.array(b.hi, dtype=np.float64)
+    return problem
+
+
+def _add_sensor_variables(problem: Problem, b: _Builder, log: Log) -> None:
+    """Constants of the UNSEEN constraints: a visibility radius per pose, the out-of-view arc.
+
+    The radius is a lower bound of the distance within which the pose saw every landmark
+    in view: ``max_range``, and with ``nearest_margin`` the nearest observed range's lower
+    bound plus the margin, rounded down.
+    """
+    sensor = log.sensor
+    nearest: dict[int, float] = {}
+    for record in log.observations:
+        low = _length(record.range)[0]
+        nearest[record.pose] = min(nearest.get(record.pose, math.inf), low)
+    for pose in problem.pose_x:
+        radius = sensor.max_range
+        if sensor.nearest_margin is not None:
+            limit = float(np.nextafter(nearest.get(pose, math.inf) + sensor.nearest_margin, 0.0))
+            radius = min(radius, limit)
+        problem.radius_var[pose] = b.new((radius, radius))
+    half = sensor.fov / 2.0
+    if sensor.fov >= 2 * math.pi:
+        problem.arc_var = b.new((1.0, 0.0))  # empty: no bearing is out of view
+    else:
+        arc = (float(np.nextafter(half, 0.0)), float(np.nextafter(TWO_PI_HI - half, math.inf)))
+        problem.arc_var = b.new(arc)
+
+
+def observation_rows(problem: Problem, decision: Decision, landmark_xs: np.ndarray) -> np.ndarray:
+    """Factor rows of ``decision``'s observation seeing the landmarks at x ``landmark_xs``."""
+    rows = np.empty((len(landmark_xs), 1 + N_SLOTS), dtype=np.int64)
+    a = decision.pose_x
+    rows[:, [KIND, XA, YA, TA, TB]] = (OBSERVATION, a, a + 1, a + 2, -1)
+    rows[:, XB], rows[:, YB] = landmark_xs, landmark_xs + 1
+    rows[:, [ANGLE, LENGTH]] = (decision.bearing_var, decision.range_var)
+    return rows
+
+
+def unseen_rows(
+    problem: Problem, pose_xs: np.ndarray, radius_vars: np.ndarray, landmark_xs: np.ndarray
+) -> np.ndarray:
+    """UNSEEN rows: pose ``pose_xs[i]`` (visibility radius ``radius_vars[i]``) did not see the
+    landmark at x ``landmark_xs[i]``."""
+    rows = np.empty((len(pose_xs), 1 + N_SLOTS), dtype=np.int64)
+    rows[:, [KIND, TB, ANGLE]] = (UNSEEN, -1, problem.arc_var)
+    rows[:, XA], rows[:, YA], rows[:, TA] = pose_xs, pose_xs + 1, pose_xs + 2
+    rows[:, XB], rows[:, YB] = landmark_xs, landmark_xs + 1
+    rows[:, LENGTH] = radius_vars
+    return rows
