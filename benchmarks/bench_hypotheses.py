@@ -1,21 +1,26 @@
-"""Benchmark of the unknown-correspondence search: hypotheses per second and peak memory.
+"""Benchmark of the unknown-correspondence search: completeness, survivors, time, memory.
 
     python benchmarks/bench_hypotheses.py                     # 200, 1000 and 5000 poses
+    python benchmarks/bench_hypotheses.py --dense --seeds 10  # the dense worlds, 30/60/100 poses
     python benchmarks/bench_hypotheses.py --poses 200 --json out.json
 
-Each world runs in its own process so that its peak resident memory is its own. A
-"hypothesis processed" is one candidate (hypothesis, landmark) pair considered at a branch
-point: rejected by the same-scan rule, by the gate, proven empty by propagation, or kept.
-"branched" counts the unlabelled observations processed: the search stops early when
-every hypothesis kept within ``--max-hypotheses`` is proven impossible. Also times the
-seed paper's experiment end to end (simulate + solve, unknown correspondence, after a
-warm-up that loads the numba cache), best of five runs.
+Each world runs in its own process (after a warm-up solve that loads the numba cache) so
+that its peak resident memory is its own. The search runs at level ``hull`` with a time
+budget (``--budget`` seconds): it ends complete, or stops and says so. "nodes" counts
+expanded nodes of the depth-first search (one unlabelled observation decided in one
+partial hypothesis); "candidates" the (node, landmark) pairs considered. Also times the
+seed paper's experiment end to end (simulate + solve), best of five runs.
+
+The dense worlds are those a new user tries first: a 30 m room, 2 m steps, 16 landmarks
+in 2 classes, odometry and observations bounded by 5 cm and 1 degree, a sensor of 12 m
+range and a field of view of pi.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import multiprocessing
 import resource
 import sys
@@ -30,26 +35,33 @@ WORLDS = [
     (1000, 50, ("door", "corridor", "post")),
     (5000, 100, ("door", "corridor", "post", "pillar", "window")),
 ]
+SPARSE = {"size": (60.0, 45.0)}
+DENSE_POSES = (30, 60, 100)
+DENSE = {
+    "size": (30.0, 30.0),
+    "step_length": (2.0, 2.0),
+    "max_range": 12.0,
+    "fov": math.pi,
+    "odometry_bounds": (math.radians(1.0), 0.05),
+    "observation_bounds": (0.05, math.radians(1.0)),
+}
 
 
 def _run_world(
-    n_poses: int, n_landmarks: int, classes: tuple[str, ...], seed: int, max_hypotheses: int,
-    consistency: str, queue: multiprocessing.Queue,
+    n_poses: int, n_landmarks: int, classes: tuple[str, ...], seed: int, world: dict,
+    budget: float, queue: multiprocessing.Queue,
 ) -> None:  # fmt: skip
+    from cuikslam.hypotheses import solve_unknown
     from cuikslam.simulate import simulate_random_world
-    from cuikslam.solver import solve
 
     log, truth = simulate_random_world(
-        seed=seed,
-        n_poses=n_poses,
-        n_landmarks=n_landmarks,
-        classes=classes,
-        size=(60.0, 45.0),
-        unknown=True,
-    )
-    solve(simulate_random_world(seed=seed, n_poses=5, n_landmarks=3, unknown=True)[0])  # warm-up
+        seed=seed, n_poses=n_poses, n_landmarks=n_landmarks, classes=classes, unknown=True,
+        **world,
+    )  # fmt: skip
+    warm_up = simulate_random_world(seed=seed, n_poses=5, n_landmarks=3, unknown=True)[0]
+    solve_unknown(warm_up, consistency="hull")
     start = time.perf_counter()
-    solution = solve(log, max_hypotheses=max_hypotheses, consistency=consistency)
+    solution = solve_unknown(log, consistency="hull", deadline=start + budget)
     elapsed = time.perf_counter() - start
     stats = solution.statistics
     first: dict[str, int] = {}
@@ -63,6 +75,7 @@ def _run_world(
     queue.put(
         {
             "poses": n_poses,
+            "seed": seed,
             "landmarks": n_landmarks,
             "classes": len(classes),
             "observations": len(log.observations),
@@ -72,8 +85,8 @@ def _run_world(
             "candidates": stats["candidates"],
             "candidates_per_s": stats["candidates"] / elapsed if elapsed else float("nan"),
             "created": stats["created"],
-            "survivors": len(solution.hypotheses),
-            "peak_alive": stats["peak_alive"],
+            "survivors": stats["survivors"],
+            "peak_frontier": stats["peak_frontier"],
             "complete": solution.complete,
             "true_hypothesis_kept": found,
             "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
@@ -113,33 +126,40 @@ def _in_process(target, *args) -> dict:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--poses", type=int, nargs="*", help="only these world sizes")
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--max-hypotheses", type=int, default=64)
-    parser.add_argument("--consistency", default="hull", choices=["hull", "lp"])
+    parser.add_argument("--seed", type=int, default=0, help="first seed")
+    parser.add_argument("--seeds", type=int, default=1, help="worlds per size")
+    parser.add_argument("--dense", action="store_true", help="the dense worlds (30/60/100 poses)")
+    parser.add_argument("--budget", type=float, default=30.0, help="seconds per search")
+    parser.add_argument("--no-paper", action="store_true")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     rows = []
-    paper = _in_process(_paper)
-    print(f"seed paper, unknown correspondence, end to end: {paper['paper_seconds']:.3f} s "
-          f"(best of {PAPER_REPEATS}; median {paper['paper_seconds_median']:.3f} s; "
-          f"{paper['survivors']} survivors)")  # fmt: skip
-    header = ("poses", "lmks", "cls", "obs", "branched", "seconds", "cand.", "cand./s", "peak",
-              "surv.", "complete", "truth", "RSS MB")  # fmt: skip
+    paper = None
+    if not args.no_paper:
+        paper = _in_process(_paper)
+        print(f"seed paper, unknown correspondence, end to end: {paper['paper_seconds']:.3f} s "
+              f"(best of {PAPER_REPEATS}; median {paper['paper_seconds_median']:.3f} s; "
+              f"{paper['survivors']} survivors)")  # fmt: skip
+    header = ("poses", "seed", "obs", "nodes", "seconds", "cand./s", "frontier", "surv.",
+              "complete", "truth", "RSS MB")  # fmt: skip
     print(" ".join(f"{h:>8}" for h in header))
-    for n_poses, n_landmarks, classes in WORLDS:
+    if args.dense:
+        worlds = [(n, 16, ("door", "corridor"), DENSE) for n in DENSE_POSES]
+    else:
+        worlds = [(*w, SPARSE) for w in WORLDS]
+    for n_poses, n_landmarks, classes, world in worlds:
         if args.poses and n_poses not in args.poses:
             continue
-        r = _in_process(
-            _run_world, n_poses, n_landmarks, classes, args.seed, args.max_hypotheses,
-            args.consistency,
-        )  # fmt: skip
-        rows.append(r)
-        print(f"{r['poses']:>6} {r['landmarks']:>5} {r['classes']:>4} {r['observations']:>6} "
-              f"{r['branch_points']:>6}/{r['unlabelled']:<6} {r['seconds']:>8.2f} "
-              f"{r['candidates']:>9} {r['candidates_per_s']:>9.0f} "
-              f"{r['peak_alive']:>5} {r['survivors']:>5} {r['complete']!s:>8} "
-              f"{r['true_hypothesis_kept']!s:>5} {r['peak_rss_mb']:>7.0f}")  # fmt: skip
-        sys.stdout.flush()
+        for seed in range(args.seed, args.seed + args.seeds):
+            r = _in_process(
+                _run_world, n_poses, n_landmarks, classes, seed, world, args.budget
+            )  # fmt: skip
+            rows.append(r)
+            print(f"{r['poses']:>8} {r['seed']:>8} {r['observations']:>8} "
+                  f"{r['branch_points']:>8} {r['seconds']:>8.2f} {r['candidates_per_s']:>8.0f} "
+                  f"{r['peak_frontier']:>8} {r['survivors']:>8} {r['complete']!s:>8} "
+                  f"{r['true_hypothesis_kept']!s:>8} {r['peak_rss_mb']:>8.0f}")  # fmt: skip
+            sys.stdout.flush()
     if args.json:
         args.json.write_text(json.dumps({"paper": paper, "worlds": rows}, indent=1))
     return 0
