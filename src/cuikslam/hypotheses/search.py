@@ -38,6 +38,7 @@ from cuikslam.narrowing._propagate import INCONSISTENT
 from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level, strengthen
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL
 from cuikslam.results.solution import Hypothesis, Solution
+from cuikslam.results.summary import describe, summarize, summary_to_json
 
 __all__ = [
     "DEFAULT_MAX_HYPOTHESES",
@@ -546,6 +547,15 @@ def solve_unknown(
             f"{stats.survivors} hypotheses survived; the {len(hypotheses)} best-ranked are "
             "reported (raise --max-hypotheses to see more)"
         )
+    correspondence = None
+    if hypotheses:
+        summary = summarize(hypotheses, set(problem.named))
+        messages.append(describe(summary, len(hypotheses)))
+        correspondence = {
+            **summary_to_json(summary),
+            "reported": len(hypotheses),
+            "survivors": stats.survivors,
+        }
     if not hypotheses:
         messages.append(
             "every correspondence hypothesis is proven impossible: the log is inconsistent"
@@ -569,4 +579,5 @@ def solve_unknown(
         log_path=log.path,
         consistency=level if hypotheses else consistency,
         messages=messages,
+        correspondence=correspondence,
     )

@@ -8,7 +8,15 @@ JSON layout (stable keys)::
                      "landmarks": {"L0": {"class": "door", "x": [lo, hi], "y": [lo, hi]}},
                      "status": "not refuted", "consistency": "lp", "rank": 1,
                      "n_landmarks": 4}],
-     "statistics": {...}, "timings": {...}, "log": "...", "consistency": "..."}
+     "statistics": {...}, "timings": {...}, "log": "...", "consistency": "...",
+     "correspondence": {"follows": [["#0", "new"], ...], "certain": [true, ...],
+                        "factors": [{"observations": [3, 7], "choices": [[...], ...]}],
+                        "reported": 12, "survivors": 12}}
+
+``correspondence`` (unknown correspondence only) says, for each observation, what it can
+follow across the reported survivors: ``"#j"`` (observation j saw the same landmark
+last), a named landmark's id, or ``"new"``; and how the ambiguous observations split into
+independent groups whose choices combine freely.
 
 Bounds are written with full precision (``repr`` of the floats), so reading a result
 back gives the same boxes. Files are written atomically.
@@ -71,6 +79,7 @@ def solution_to_json(solution: Solution) -> dict[str, Any]:
         "log": solution.log_path,
         "consistency": solution.consistency,
         "cuikslam_version": __version__,
+        **({} if solution.correspondence is None else {"correspondence": solution.correspondence}),
     }
 
 
@@ -158,6 +167,7 @@ def read_result_file(path: str | os.PathLike[str]) -> Solution:
             log_path=str(doc.get("log", "")),
             consistency=str(doc.get("consistency", "")),
             messages=list(doc.get("messages", [])),
+            correspondence=doc.get("correspondence"),
         )
     except (KeyError, TypeError, ValueError, AttributeError) as err:
         problem = f"missing key {err}" if isinstance(err, KeyError) else str(err)

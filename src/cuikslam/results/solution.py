@@ -76,6 +76,9 @@ class Solution:
     log_path: str = ""
     consistency: str = ""
     messages: list[str] = field(default_factory=list)
+    correspondence: dict | None = None
+    """For unknown correspondence: what the reported survivors agree on (JSON-ready; see
+    :func:`cuikslam.results.summary.summarize` and :func:`.summary.summary_to_json`)."""
 
     @property
     def best(self) -> Hypothesis:

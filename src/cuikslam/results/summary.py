@@ -1,0 +1,170 @@
+"""What the surviving hypotheses agree on, and how their disagreements factor.
+
+A user of an unknown-correspondence solve first wants to know: which observations are
+associated for certain, which are ambiguous and between what, and whether the ambiguities
+interact. Each observation is described by the observation it *follows*: the previous
+observation of the same landmark (or the named landmark itself, or nothing when it is the
+landmark's first sighting). That description changes only where two hypotheses differ,
+so independent ambiguities stay apart.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from cuikslam.results.solution import Hypothesis
+
+__all__ = ["Ambiguity", "CorrespondenceSummary", "describe", "summarize", "summary_to_json"]
+
+NEW = "new"
+"""An observation that is the first sighting of an anonymous landmark."""
+
+
+@dataclass
+class Ambiguity:
+    """A group of observations whose associations vary together, independently of the rest."""
+
+    observations: list[int]
+    """Indices of the observations (in log order)."""
+    choices: list[list[str]]
+    """The distinct joint choices: for each, what every observation of the group follows."""
+
+
+@dataclass
+class CorrespondenceSummary:
+    """Agreement across survivors (see :func:`summarize`)."""
+
+    follows: list[list[str]]
+    """For each observation, what it can follow across the survivors: ``"#j"`` (the
+    observation j saw the same landmark last), a named landmark's id, or ``"new"``."""
+    certain: list[bool]
+    """True where every survivor agrees."""
+    factors: list[Ambiguity]
+    """Independent groups of ambiguous observations: the survivors are exactly every
+    combination of one choice per group."""
+    poses: np.ndarray
+    """Hull over survivors of each pose box, shape (n_poses, 3, 2)."""
+
+    @property
+    def combinations(self) -> int:
+        """Survivors the factors describe (their choices multiplied)."""
+        return math.prod(len(f.choices) for f in self.factors)
+
+
+def _follows(assignment: list[str], named: set[str]) -> list[str]:
+    last: dict[str, int] = {}
+    out = []
+    for i, landmark in enumerate(assignment):
+        if landmark in last:
+            out.append(f"#{last[landmark]}")
+        else:
+            out.append(landmark if landmark in named else NEW)
+        last[landmark] = i
+    return out
+
+
+def summarize(hypotheses: list[Hypothesis], named: set[str] | None = None) -> CorrespondenceSummary:
+    """Summarise ``hypotheses`` (all with the same observations and poses).
+
+    Parameters
+    ----------
+    hypotheses : list of Hypothesis
+        The survivors of a solve (at least one).
+    named : set of str, optional
+        Landmark ids given in the log (they keep their names across hypotheses).
+
+    Returns
+    -------
+    CorrespondenceSummary
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from cuikslam.results.solution import Hypothesis
+    >>> box = np.zeros((1, 3, 2))
+    >>> def h(a):
+    ...     return Hypothesis(a, [0], box, sorted(set(a)), ["c"] * len(set(a)), np.zeros((0, 2, 2)))
+    >>> s = summarize([h(["A", "A", "B", "C"]), h(["A", "B", "B", "C"]),
+    ...                h(["A", "A", "B", "B"]), h(["A", "B", "B", "B"])])
+    >>> s.certain
+    [True, False, False, False]
+    >>> [f.observations for f in s.factors], s.combinations
+    ([[1, 2], [3]], 4)
+    """
+    named = named or set()
+    table = [_follows(h.assignment, named) for h in hypotheses]
+    n_obs = len(table[0]) if table else 0
+    follows = [sorted({row[i] for row in table}) for i in range(n_obs)]
+    certain = [len(f) == 1 for f in follows]
+    ambiguous = [i for i in range(n_obs) if not certain[i]]
+    groups = _independent_groups(table, ambiguous)
+    distinct = len({tuple(row) for row in table})
+    if math.prod(len(_choices(table, g)) for g in groups) != distinct:
+        groups = [ambiguous] if ambiguous else []  # a dependence beyond pairs: one group
+    factors = [Ambiguity(g, [list(c) for c in _choices(table, g)]) for g in groups]
+    poses = np.stack(
+        [
+            np.min([h.poses[..., 0] for h in hypotheses], axis=0),
+            np.max([h.poses[..., 1] for h in hypotheses], axis=0),
+        ],
+        axis=-1,
+    )
+    return CorrespondenceSummary(follows, certain, factors, poses)
+
+
+def _choices(table: list[list[str]], group: list[int]) -> list[tuple[str, ...]]:
+    return sorted({tuple(row[i] for i in group) for row in table})
+
+
+def _independent_groups(table: list[list[str]], ambiguous: list[int]) -> list[list[int]]:
+    """Join ambiguous observations whose choices are not independent (union-find over pairs
+    whose joint choices are not every combination of their own)."""
+    parent = {i: i for i in ambiguous}
+
+    def root(i: int) -> int:
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    values = {i: {row[i] for row in table} for i in ambiguous}
+    for a_pos, a in enumerate(ambiguous):
+        for b in ambiguous[a_pos + 1 :]:
+            if root(a) == root(b):
+                continue
+            joint = {(row[a], row[b]) for row in table}
+            if len(joint) != len(values[a]) * len(values[b]):
+                parent[root(b)] = root(a)
+    groups: dict[int, list[int]] = {}
+    for i in ambiguous:
+        groups.setdefault(root(i), []).append(i)
+    return sorted(groups.values())
+
+
+def summary_to_json(summary: CorrespondenceSummary) -> dict:
+    """The summary as plain JSON-ready objects (the result file's ``correspondence``)."""
+    return {
+        "follows": summary.follows,
+        "certain": summary.certain,
+        "factors": [
+            {"observations": f.observations, "choices": f.choices} for f in summary.factors
+        ],
+    }
+
+
+def describe(summary: CorrespondenceSummary, survivors: int) -> str:
+    """One line a user reads first: certain associations, independent ambiguities."""
+    n = len(summary.certain)
+    certain = sum(summary.certain)
+    if not summary.factors:
+        return f"all {n} observations are associated for certain"
+    sizes = " x ".join(str(len(f.choices)) for f in summary.factors)
+    return (
+        f"{certain} of {n} observations are associated for certain; the other "
+        f"{n - certain} form {len(summary.factors)} independent ambiguit"
+        f"{'y' if len(summary.factors) == 1 else 'ies'} ({sizes} = {summary.combinations} "
+        f"combinations of the {survivors} reported survivors)"
+    )

@@ -1,0 +1,57 @@
+"""The correspondence summary: certain associations and independent ambiguities."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+
+from cuikslam.hypotheses import solve_unknown
+from cuikslam.results.solution import Hypothesis
+from cuikslam.results.summary import summarize
+from cuikslam.simulate import simulate_paper
+
+
+def _hypothesis(assignment: list[str], lo: float = 0.0, hi: float = 1.0) -> Hypothesis:
+    box = np.array([[[lo, hi]] * 3])
+    ids = sorted(set(assignment))
+    return Hypothesis(assignment, [0], box, ids, ["c"] * len(ids), np.zeros((0, 2, 2)))
+
+
+def test_a_product_of_ambiguities_is_found_and_a_dependence_is_kept_together() -> None:
+    # observation 1 may join A or start B; independently, 3 may join C or D
+    product = [
+        _hypothesis(["A", one, "C", three])
+        for one, three in itertools.product(["A", "B"], ["C", "D"])
+    ]
+    s = summarize(product)
+    assert s.certain == [True, False, True, False]
+    assert [f.observations for f in s.factors] == [[1], [3]]
+    assert s.combinations == 4
+    # a parity dependence among three observations is not pairwise visible: one group
+    xor = [
+        _hypothesis(["A", *["A" if bit else f"N{i}" for i, bit in enumerate(bits, 1)]])
+        for bits in itertools.product([0, 1], repeat=3)
+        if sum(bits) % 2 == 0
+    ]
+    s = summarize(xor)
+    assert [f.observations for f in s.factors] == [[1, 2, 3]]
+    assert s.combinations == len(xor) == 4
+
+
+def test_pose_hull_spans_every_survivor() -> None:
+    s = summarize([_hypothesis(["A"], 0.0, 1.0), _hypothesis(["B"], -2.0, 0.5)])
+    assert s.poses[0, 0].tolist() == [-2.0, 1.0]
+
+
+def test_the_paper_survivors_are_a_product_of_independent_ambiguities() -> None:
+    log, truth = simulate_paper(seed=0, unknown=True)
+    solution = solve_unknown(log, consistency="hull")
+    c = solution.correspondence
+    assert c is not None and c["survivors"] == c["reported"] == len(solution.hypotheses)
+    assert math.prod(len(f["choices"]) for f in c["factors"]) == len(solution.hypotheses)
+    true_follows = summarize([_hypothesis(truth.assignment)]).follows
+    for i, options in enumerate(c["follows"]):
+        assert true_follows[i][0] in options
+        assert c["certain"][i] == (len(options) == 1)
