@@ -13,21 +13,37 @@
 
 Every level is sound: the boxes still contain every solution, and an empty result is a
 proof that the constraints have no solution.
+
+The stronger levels have a time budget (``strengthen(..., deadline=...)``). When it runs
+out, the LPs stop, the boxes are what sound narrowing reached so far (then propagated back
+to the fixpoint of the factors), and the level reached is reported honestly
+(:class:`StrengthenReport`): ``"lp (budget)"`` means hull-consistent boxes narrowed further
+by some but not all ``lp`` rounds; ``"lp-split (budget)"`` means ``lp`` was reached and the
+heading splits were cut short; ``"hull"`` means the budget ran out before any LP ran.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
+from cuikslam.budget import expired
 from cuikslam.graph.encoding import KIND, OBSERVATION, ODOMETRY, TA, TB, XA, XB
 from cuikslam.narrowing._propagate import CONSISTENT, INCONSISTENT, propagate_arrays
-from cuikslam.narrowing.relaxation import WarmStarts, tighten
+from cuikslam.narrowing.relaxation import LpStatistics, WarmStarts, tighten
 
-__all__ = ["DEFAULT_LEVEL", "LEVELS", "Arrays", "resolve_level", "strengthen"]
+__all__ = [
+    "BUDGET_SUFFIX",
+    "DEFAULT_LEVEL",
+    "LEVELS",
+    "Arrays",
+    "StrengthenReport",
+    "resolve_level",
+    "strengthen",
+]
 
 LEVELS = ("hull", "lp", "lp-split")
 DEFAULT_LEVEL = "auto"
@@ -43,6 +59,23 @@ ACTIVE_GAIN = 0.02
 """Between full rounds, only variables that shrank by this fraction last round are re-solved."""
 SPLIT_HEADINGS = 2
 """Headings bisected by the ``lp-split`` level (the widest first)."""
+BUDGET_SUFFIX = " (budget)"
+"""Appended to a level whose rounds the time budget cut short (e.g. ``"lp (budget)"``)."""
+
+
+@dataclass
+class StrengthenReport:
+    """What :func:`strengthen` reached: pass one as ``report=`` to have it filled in."""
+
+    level: str = ""
+    """The level the boxes reach: ``hull``, ``lp``, ``lp-split``, or a level followed by
+    ``BUDGET_SUFFIX`` when the deadline cut it short (see the module docstring)."""
+    budget_exhausted: bool = False
+    """True when the deadline stopped the rounds before the level's own stopping rule."""
+    lp_rounds: int = 0
+    """Rounds of the polytope-hull operator run (over all windows, halves included)."""
+    lp: LpStatistics = field(default_factory=LpStatistics)
+    """LP counts: solved, optimal, stopped by a limit, retried, skipped at the deadline."""
 
 
 @dataclass
@@ -105,23 +138,69 @@ def strengthen(
     rtol: float,
     max_rounds: int,
     progress: Callable[[int, int], None] | None = None,
+    *,
+    deadline: float | None = None,
+    report: StrengthenReport | None = None,
 ) -> tuple[int, int]:
     """Narrow ``lo``/``hi`` in place beyond the fixpoint, to the given consistency level.
 
-    Call it on boxes already at the fixpoint. Returns ``(status, operator applications)``
-    with status CONSISTENT or INCONSISTENT (a proof). ``progress(done, total)`` is called
-    after each window's LPs, ``total`` counting the most rounds the level may run.
+    Parameters
+    ----------
+    arrays : Arrays
+        The graph.
+    lo, hi : numpy.ndarray
+        Bounds of every variable, already at the fixpoint of the factors; narrowed in place.
+    level : str
+        One of ``LEVELS``.
+    rtol : float
+        Relative gain below which propagation stops requeueing a factor.
+    max_rounds : int
+        Propagation rounds at most (per propagation).
+    progress : callable, optional
+        ``progress(done, total)`` after each window's LPs, ``total`` counting the most
+        rounds the level may run.
+    deadline : float, optional
+        A :func:`time.perf_counter` value: no LP starts after it, and running LPs stop (at
+        most ``lp_bounds.LP_TIME_LIMIT`` later). The boxes are then whatever sound
+        narrowing reached, propagated back to the fixpoint. None: no time limit (each LP
+        still has its own iteration and time limits).
+    report : StrengthenReport, optional
+        Filled in with the level reached and LP counts.
+
+    Returns
+    -------
+    tuple of int
+        ``(status, operator applications)``, status CONSISTENT or INCONSISTENT (a proof:
+        whatever the deadline, an empty box is never a guess).
     """
     ensure_round_to_nearest()
     if level not in LEVELS:
         raise ValueError(f"unknown consistency level {level!r}; choose one of {', '.join(LEVELS)}")
+    report = report if report is not None else StrengthenReport()
+    report.level = "hull"
     if level == "hull":
         return CONSISTENT, 0
-    status, applications = _polytope_rounds(arrays, lo, hi, rtol, max_rounds, progress)
-    if status == INCONSISTENT or level == "lp":
+    if expired(deadline):
+        report.budget_exhausted = True
+        return CONSISTENT, 0
+    solved_before = report.lp.solved
+    status, applications, finished = _polytope_rounds(
+        arrays, lo, hi, rtol, max_rounds, progress, deadline, report
+    )
+    if finished:
+        report.level = "lp"
+    elif report.lp.solved > solved_before:
+        report.level = "lp" + BUDGET_SUFFIX
+    if not finished:
+        report.budget_exhausted = True
+    if status == INCONSISTENT or level == "lp" or not finished:
         return status, applications
     headings = np.unique(arrays.factors[arrays.factors[:, KIND] == ODOMETRY][:, [TA, TB]])
     for _ in range(SPLIT_HEADINGS):
+        if expired(deadline):
+            report.budget_exhausted = True
+            report.level = "lp-split" + BUDGET_SUFFIX
+            return CONSISTENT, applications
         widths = hi[headings] - lo[headings]
         if headings.size == 0 or not np.isfinite(widths).any() or widths.max() <= 0:
             break
@@ -138,14 +217,23 @@ def strengthen(
             )  # fmt: skip
             applications += count
             if status != INCONSISTENT:
-                status, count = _polytope_rounds(arrays, half_lo, half_hi, rtol, max_rounds)
+                # each half is narrowed as far as the deadline allows (at least propagated),
+                # so the hull of the two halves is sound however early it stops
+                status, count, finished = _polytope_rounds(
+                    arrays, half_lo, half_hi, rtol, max_rounds, None, deadline, report
+                )
                 applications += count
+                if not finished:
+                    report.budget_exhausted = True
+                    report.level = "lp-split" + BUDGET_SUFFIX
             if status != INCONSISTENT:
                 halves.append((half_lo, half_hi))
         if not halves:
             return INCONSISTENT, applications
         lo[:] = np.min([h[0] for h in halves], axis=0)
         hi[:] = np.max([h[1] for h in halves], axis=0)
+    if not report.budget_exhausted:
+        report.level = "lp-split"
     return CONSISTENT, applications
 
 
@@ -164,20 +252,28 @@ def _polytope_rounds(
     hi: np.ndarray,
     rtol: float,
     max_rounds: int,
-    progress: Callable[[int, int], None] | None = None,
-) -> tuple[int, int]:
-    """Rounds of the polytope-hull operator, each followed by propagation, until they stall."""
+    progress: Callable[[int, int], None] | None,
+    deadline: float | None,
+    report: StrengthenReport,
+) -> tuple[int, int, bool]:
+    """Rounds of the polytope-hull operator, each followed by propagation, until they stall.
+
+    Returns ``(status, applications, finished)``; ``finished`` is False when the deadline
+    cut the rounds short (the boxes are then propagated to the fixpoint all the same).
+    """
     everything = np.arange(arrays.factors.shape[0], dtype=np.int64)
     applications = 0
     windows = _windows(arrays.factors)
     if not windows:
-        return CONSISTENT, 0
+        return CONSISTENT, 0, True
     targets = np.unique(np.concatenate([t for _, t in windows]))
     width = _total_width(lo, hi, targets)
     active = np.ones(len(lo), dtype=bool)
     warm = [WarmStarts() for _ in windows]
     for round_index in range(MAX_LP_ROUNDS):
         before = hi - lo
+        skipped = report.lp.skipped
+        cut = False
         if round_index % FULL_ROUND_EVERY == 0:
             active[:] = True
         for w, ((rows, window_targets), bases) in enumerate(zip(windows, warm, strict=True)):
@@ -186,11 +282,18 @@ def _polytope_rounds(
             chosen = window_targets[active[window_targets]]
             if chosen.size == 0:
                 continue
-            new_lo, new_hi, feasible = tighten(rows, lo, hi, chosen, bases)
+            if expired(deadline):
+                cut = True
+                break
+            new_lo, new_hi, feasible = tighten(
+                rows, lo, hi, chosen, bases, deadline=deadline, statistics=report.lp
+            )
             if not feasible:
-                return INCONSISTENT, applications
+                return INCONSISTENT, applications, True
             lo[:] = new_lo
             hi[:] = new_hi
+        report.lp_rounds += 1
+        cut = cut or report.lp.skipped > skipped
         status, count = propagate_arrays(
             lo,
             hi,
@@ -205,11 +308,15 @@ def _polytope_rounds(
         )
         applications += count
         if status == INCONSISTENT:
-            return INCONSISTENT, applications
+            return INCONSISTENT, applications, True
+        if cut:
+            return CONSISTENT, applications, False
         new_width = _total_width(lo, hi, targets)
         if new_width > width * (1.0 - MIN_GAIN) and round_index % FULL_ROUND_EVERY == 0:
             break
+        if expired(deadline) and round_index + 1 < MAX_LP_ROUNDS:
+            return CONSISTENT, applications, False
         width = new_width
         with np.errstate(invalid="ignore"):
             active = (hi - lo) < before * (1.0 - ACTIVE_GAIN)
-    return CONSISTENT, applications
+    return CONSISTENT, applications, True

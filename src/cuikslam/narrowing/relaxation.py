@@ -20,18 +20,13 @@ answer can only make a bound weaker, never unsound.
 
 from __future__ import annotations
 
-import functools
-import math
-from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
-import highspy
 import numpy as np
 from scipy import sparse
 
 from cuikslam import interval as ia
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam._jit import jit
 from cuikslam.graph.encoding import (
     ANGLE,
     KIND,
@@ -45,17 +40,10 @@ from cuikslam.graph.encoding import (
     YA,
     YB,
 )
-from cuikslam.interval._rounding import TWO_PI_HI, TWO_PI_LO, add_down, add_up, mul_down, mul_up
+from cuikslam.interval._rounding import TWO_PI_HI, TWO_PI_LO
+from cuikslam.narrowing.lp_bounds import LpStatistics, WarmStarts, certified_bounds
 
-__all__ = ["LinearRelaxation", "WarmStarts", "relax", "tighten"]
-
-
-@dataclass
-class WarmStarts:
-    """Optimal LP bases of earlier :func:`tighten` calls, per column and direction."""
-
-    minima: dict[int, highspy.HighsBasis] = field(default_factory=dict)
-    maxima: dict[int, highspy.HighsBasis] = field(default_factory=dict)
+__all__ = ["LinearRelaxation", "LpStatistics", "WarmStarts", "relax", "tighten"]
 
 
 @dataclass
@@ -264,61 +252,15 @@ def _turn_rows(
     return [(cols, vals, shift)]
 
 
-@jit
-def _transposed_product_bounds(
-    indptr: np.ndarray, indices: np.ndarray, data: np.ndarray, y: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """Enclosure of A^T y for a CSC matrix A (one outward-rounded dot product per column)."""
-    n = indptr.shape[0] - 1
-    out_lo = np.zeros(n)
-    out_hi = np.zeros(n)
-    for j in range(n):
-        lo = 0.0
-        hi = 0.0
-        for k in range(indptr[j], indptr[j + 1]):
-            lo = add_down(lo, mul_down(data[k], y[indices[k]]))
-            hi = add_up(hi, mul_up(data[k], y[indices[k]]))
-        out_lo[j] = lo
-        out_hi[j] = hi
-    return out_lo, out_hi
-
-
-@jit
-def _sum_down(values: np.ndarray) -> float:
-    total = 0.0
-    for v in values:
-        total = add_down(total, v)
-    return total
-
-
-def _safe_lower_bound(
-    relaxation: LinearRelaxation,
-    csc: sparse.csc_matrix,
-    objective: np.ndarray,
-    row_dual: np.ndarray,
-    box: np.ndarray,
-) -> float:
-    """A rigorous lower bound of ``objective @ x`` over {x in box, row_lo <= A x <= row_hi}.
-
-    For any multipliers y: c x = (c - A^T y) x + y (A x), each term bounded over its box.
-    """
-    y = np.asarray(row_dual, dtype=np.float64)
-    at_y = ia.interval(*_transposed_product_bounds(csc.indptr, csc.indices, csc.data, y))
-    reduced = ia.sub(_point(objective), at_y)
-    terms = ia.mul(reduced, box)
-    row_terms = ia.mul(_point(y), ia.interval(relaxation.row_lo, relaxation.row_hi))
-    lows = np.concatenate([terms[:, 0], row_terms[:, 0]])
-    if np.isnan(lows).any():
-        return -math.inf
-    return _sum_down(lows)
-
-
 def tighten(
     factors: np.ndarray,
     lo: np.ndarray,
     hi: np.ndarray,
     targets: np.ndarray,
     warm: WarmStarts | None = None,
+    *,
+    deadline: float | None = None,
+    statistics: LpStatistics | None = None,
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Narrow the ``targets`` variables to the hull of the linear relaxation of ``factors``.
 
@@ -327,6 +269,10 @@ def tighten(
     is proven empty (then the graph has no solution in the box). Pass the same ``warm``
     to repeated calls on the same factors: each LP then starts from the optimal basis of
     its previous call, which the rows of a narrower box usually keep nearly optimal.
+
+    Each LP runs within its own limits (see :mod:`.lp_bounds`); past ``deadline`` (a
+    :func:`time.perf_counter` value) no further LP starts and the remaining targets keep
+    their bounds. ``statistics`` (an :class:`LpStatistics`) receives the LP counts.
     """
     ensure_round_to_nearest()
     lo, hi = lo.copy(), hi.copy()
@@ -346,78 +292,12 @@ def tighten(
     chosen = [int(v) for v in targets if local[v] >= 0]
     # minima and maxima in two threads, each with its own HiGHS instance
     warm = warm if warm is not None else WarmStarts()
-    futures = [
-        _pool().submit(_bounds, relaxation, csc, box, columns, sense, bases)
-        for sense, bases in ((1.0, warm.minima), (-1.0, warm.maxima))
-    ]
-    lower, upper = (f.result() for f in futures)
+    lower, upper = certified_bounds(
+        csc, relaxation.row_lo, relaxation.row_hi, box, columns, warm, deadline, statistics
+    )
     for v, low, high in zip(chosen, lower, upper, strict=True):
         lo[v] = max(lo[v], low)
         hi[v] = min(hi[v], high)
         if lo[v] > hi[v]:
             return lo, hi, False
     return lo, hi, True
-
-
-@functools.cache
-def _pool() -> ThreadPoolExecutor:
-    return ThreadPoolExecutor(max_workers=2, thread_name_prefix="cuikslam-lp")
-
-
-def _bounds(
-    relaxation: LinearRelaxation,
-    csc: sparse.csc_matrix,
-    box: np.ndarray,
-    columns: list[int],
-    sense: float,
-    bases: dict[int, highspy.HighsBasis],
-) -> list[float]:
-    """Certified minima (sense 1) or maxima (sense -1) of the ``columns`` over the relaxation.
-
-    ``bases`` maps a column to the optimal basis of its last LP; it is read and updated.
-    """
-    ensure_round_to_nearest()  # the rounding mode is per thread
-    solver = _load(relaxation, csc)
-    shape = (csc.shape[1], csc.shape[0])
-    out = []
-    previous = -1
-    for j in columns:
-        if previous >= 0:
-            solver.changeColCost(previous, 0.0)
-        solver.changeColCost(j, sense)
-        previous = j
-        basis = bases.get(j)
-        if basis is not None and (len(basis.col_status), len(basis.row_status)) == shape:
-            solver.setBasis(basis)
-        solver.run()
-        bases[j] = solver.getBasis()
-        if solver.getModelStatus() != highspy.HighsModelStatus.kOptimal:
-            out.append(-math.inf if sense > 0 else math.inf)  # no certificate: keep the box
-            continue
-        objective = np.zeros(len(box))
-        objective[j] = sense
-        bound = _safe_lower_bound(relaxation, csc, objective, solver.getSolution().row_dual, box)
-        out.append(bound if sense > 0 else -bound)
-    return out
-
-
-def _load(relaxation: LinearRelaxation, csc: sparse.csc_matrix) -> highspy.Highs:
-    solver = highspy.Highs()
-    solver.setOptionValue("output_flag", False)
-    solver.setOptionValue("presolve", "off")
-    inf = highspy.kHighsInf
-    model = highspy.HighsLp()
-    lo, hi = relaxation.col_lo, relaxation.col_hi
-    model.num_col_ = len(lo)
-    model.num_row_ = csc.shape[0]
-    model.col_cost_ = np.zeros(len(lo))
-    model.col_lower_ = np.where(np.isfinite(lo), lo, -inf)
-    model.col_upper_ = np.where(np.isfinite(hi), hi, inf)
-    model.row_lower_ = np.where(np.isfinite(relaxation.row_lo), relaxation.row_lo, -inf)
-    model.row_upper_ = np.where(np.isfinite(relaxation.row_hi), relaxation.row_hi, inf)
-    model.a_matrix_.format_ = highspy.MatrixFormat.kColwise
-    model.a_matrix_.start_ = csc.indptr
-    model.a_matrix_.index_ = csc.indices
-    model.a_matrix_.value_ = csc.data
-    solver.passModel(model)
-    return solver
