@@ -4,17 +4,26 @@
 interval, from a few starting points, and keeps the first point that :mod:`.verify` proves.
 :func:`certify` runs that search on every hypothesis of a
 :class:`~cuikslam.results.Solution` and marks the proven ones.
+
+The search has a budget: a deadline (checked at every evaluation of the residuals, so it
+stops within one least-squares step of it) and a work limit (``MAX_EVALUATIONS`` residual
+evaluations per hypothesis). When either runs out the hypothesis stays ``not refuted``:
+only a verified point ever makes it ``proven consistent``. The search runs with one BLAS
+thread (:func:`cuikslam.budget.blas_single_thread`): its matrices are tiny.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
 
+from cuikslam.budget import OutOfTime, blas_single_thread, expired
+from cuikslam.hypotheses.witness._numeric import finite
 from cuikslam.hypotheses.witness.model import (
     HypothesisModel,
     LandmarkBoxes,
@@ -28,6 +37,50 @@ from cuikslam.results.solution import NOT_REFUTED, PROVEN, Solution
 
 _HOPELESS = 0.5
 """A hinge residual (in half-widths) beyond which aiming closer to the bounds is not tried."""
+MAX_EVALUATIONS = 2000
+"""Residual evaluations (each with its Jacobian) one hypothesis' search may use at most."""
+
+
+@dataclass
+class WitnessStatistics:
+    """How a witness search went (added up over the hypotheses of a :func:`certify`)."""
+
+    starts: int = 0
+    """Starting points tried."""
+    evaluations: int = 0
+    """Residual evaluations (the unit of work of the least-squares steps)."""
+    out_of_time: bool = False
+    """The deadline stopped a search before it had tried every start."""
+    out_of_work: bool = False
+    """``MAX_EVALUATIONS`` stopped a search before it had tried every start."""
+    failed_starts: int = 0
+    """Starts abandoned on a numerical error of the optimiser (never expected; counted)."""
+
+    @property
+    def budget_exhausted(self) -> bool:
+        return self.out_of_time or self.out_of_work
+
+
+class _OutOfWork(Exception):
+    pass
+
+
+@dataclass
+class _Meter:
+    """Counts evaluations and raises when the search's time or work budget is spent."""
+
+    deadline: float | None
+    limit: int
+    stats: WitnessStatistics
+    used: int = 0
+
+    def tick(self) -> None:
+        self.used += 1
+        self.stats.evaluations += 1
+        if expired(self.deadline):
+            raise OutOfTime
+        if self.used > self.limit:
+            raise _OutOfWork
 
 
 def _polish_equalities(model: HypothesisModel, p: np.ndarray, iterations: int = 4) -> np.ndarray:
@@ -41,14 +94,16 @@ def _polish_equalities(model: HypothesisModel, p: np.ndarray, iterations: int = 
         assert J is not None
         if np.max(np.abs(f)) < 1e-15:
             break
-        step, *_ = np.linalg.lstsq(J[:, free], -f, rcond=None)
+        step, *_ = np.linalg.lstsq(finite(J[:, free], nan=0.0), -finite(f), rcond=None)
+        if not np.all(np.isfinite(step)):
+            break
         p[free] += step
         p = np.clip(p, model.param_lo, model.param_hi)
     return p
 
 
 def _solve_margins(
-    model: HypothesisModel, x0: np.ndarray, max_nfev: int = 200
+    model: HypothesisModel, x0: np.ndarray, meter: _Meter, max_nfev: int = 200
 ) -> tuple[np.ndarray, float, np.ndarray | None]:
     """Least squares from ``x0``: the centre estimate, then the hinge residuals of the
     aimed margins; returns (params, largest hinge residual, verified box or None)."""
@@ -69,9 +124,10 @@ def _solve_margins(
         def both(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             key = z.tobytes()
             if key not in memo:
+                meter.tick()
                 memo.clear()
                 r, J = residuals(full(z), jacobian=True)
-                memo[key] = (r, J[:, free])
+                memo[key] = (finite(r), finite(J[:, free], nan=0.0))
             return memo[key]
 
         result = least_squares(
@@ -117,11 +173,39 @@ def find_point(
     landmarks_box: LandmarkBoxes,
     seed: int,
     restarts: int,
+    *,
+    deadline: float | None = None,
+    max_evaluations: int = MAX_EVALUATIONS,
+    statistics: WitnessStatistics | None = None,
 ) -> tuple[WitnessPoint | None, np.ndarray | None]:
-    """The search of :func:`find_witness` on a built model: (point, verified parameter box),
-    or (unverified point, None), or (None, None)."""
+    """The search of :func:`find_witness` on a built model.
+
+    Parameters
+    ----------
+    model : HypothesisModel
+        The hypothesis.
+    poses_box, landmarks_box
+        Boxes whose centres give the first start (or None).
+    seed : int
+        Seed of the random starts.
+    restarts : int
+        Random starts after the box centres and the interval midpoints.
+    deadline : float, optional
+        :func:`time.perf_counter` value at which the search stops.
+    max_evaluations : int
+        Residual evaluations at most.
+    statistics : WitnessStatistics, optional
+        Counts are added here (and whether a budget ran out).
+
+    Returns
+    -------
+    tuple
+        (point, verified parameter box), or (unverified point, None), or (None, None).
+    """
+    stats = statistics if statistics is not None else WitnessStatistics()
     if model.problems:
         return None, None
+    meter = _Meter(deadline, max_evaluations, stats)
     rng = np.random.default_rng(seed)
     starts = []
     if poses_box is not None or landmarks_box is not None:
@@ -130,12 +214,29 @@ def find_point(
     for _ in range(restarts):
         starts.append(lambda: model.initial_params(None, landmarks_box, rng=rng))
     best: tuple[float, np.ndarray] | None = None
-    for start in starts:
-        p, residual, box = _solve_margins(model, start())
-        if box is not None:
-            return model.point(p, residual), box
-        if best is None or residual < best[0]:
-            best = (residual, p)
+    with blas_single_thread(), np.errstate(all="ignore"):
+        for start in starts:
+            if expired(deadline):
+                stats.out_of_time = True
+                break
+            stats.starts += 1
+            try:
+                p, residual, box = _solve_margins(model, start(), meter)
+            except OutOfTime:
+                stats.out_of_time = True
+                break
+            except _OutOfWork:
+                stats.out_of_work = True
+                break
+            except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+                # a numerical failure of the optimiser (it only proposes points): try the
+                # next start; the hypothesis at worst stays 'not refuted'
+                stats.failed_starts += 1
+                continue
+            if box is not None:
+                return model.point(p, residual), box
+            if best is None or residual < best[0]:
+                best = (residual, p)
     if best is not None and best[0] <= 1e-12:
         return model.point(best[1], best[0]), None
     return None, None
@@ -150,6 +251,7 @@ def find_witness(
     *,
     restarts: int = 3,
     use_sensor: bool = True,
+    deadline: float | None = None,
 ) -> WitnessPoint | None:
     """Look for a solution point of the hypothesis ``(log, assignment)``.
 
@@ -161,10 +263,11 @@ def find_witness(
     then from ``restarts`` random points (``numpy.random.default_rng(seed)``).
 
     Returns the first point that :func:`verify_witness` accepts; failing that, a point that
-    meets every aimed margin in floating point (unverified), or None.
+    meets every aimed margin in floating point (unverified), or None. The search stops at
+    ``deadline`` (a :func:`time.perf_counter` value) or after ``MAX_EVALUATIONS``.
     """
     model = HypothesisModel(log, assignment, use_sensor=use_sensor)
-    point, _ = find_point(model, poses_box, landmarks_box, seed, restarts)
+    point, _ = find_point(model, poses_box, landmarks_box, seed, restarts, deadline=deadline)
     return point
 
 
@@ -176,7 +279,9 @@ def certify(
     restarts: int = 2,
     max_hypotheses: int | None = None,
     use_sensor: bool = True,
-) -> None:
+    deadline: float | None = None,
+    max_evaluations: int = MAX_EVALUATIONS,
+) -> WitnessStatistics:
     """Mark every hypothesis of ``solution`` whose consistency is proven.
 
     For each hypothesis (the first ``max_hypotheses`` when given), the search of
@@ -187,16 +292,37 @@ def certify(
     ``NOT_REFUTED`` without a witness. Hypotheses beyond ``max_hypotheses`` are untouched.
     A proven hypothesis takes well under a second; one that is not proven costs every
     start (about 1 s for the paper's log).
+
+    Each hypothesis' search stops after ``max_evaluations`` residual evaluations, and the
+    whole certification at ``deadline`` (a :func:`time.perf_counter` value; hypotheses not
+    reached stay ``NOT_REFUTED``). Returns the search's :class:`WitnessStatistics`; they
+    are also recorded in ``solution.statistics`` (``witness_starts``,
+    ``witness_evaluations``, ``witness_budget_exhausted``), with a message in
+    ``solution.messages`` when a budget ran out before a hypothesis was proven.
     """
     start = time.perf_counter()
     proven = 0
+    stats = WitnessStatistics()
+    unfinished = []
     chosen = solution.hypotheses if max_hypotheses is None else solution.hypotheses[:max_hypotheses]
-    for h in chosen:
+    for rank, h in enumerate(chosen, start=1):
+        if expired(deadline):
+            stats.out_of_time = True
+            h.status, h.witness = NOT_REFUTED, None
+            unfinished.append(rank)
+            continue
         model = HypothesisModel(log, h.assignment, use_sensor=use_sensor)
         poses_box = {pid: h.poses[k] for k, pid in enumerate(h.pose_ids)}
         landmarks_box = {lid: h.landmarks[k] for k, lid in enumerate(h.landmark_ids)}
-        point, box = find_point(model, poses_box, landmarks_box, seed, restarts=restarts)
+        mine = WitnessStatistics()
+        point, box = find_point(
+            model, poses_box, landmarks_box, seed, restarts,
+            deadline=deadline, max_evaluations=max_evaluations, statistics=mine,
+        )  # fmt: skip
+        _add(stats, mine)
         if point is None or box is None:
+            if mine.budget_exhausted:
+                unfinished.append(rank)
             h.status = NOT_REFUTED
             h.witness = None
             continue
@@ -213,3 +339,25 @@ def certify(
         proven += 1
     solution.timings["certify_s"] = time.perf_counter() - start
     solution.statistics["proven_hypotheses"] = proven
+    solution.statistics["witness_starts"] = stats.starts
+    solution.statistics["witness_evaluations"] = stats.evaluations
+    solution.statistics["witness_failed_starts"] = stats.failed_starts
+    solution.statistics["witness_budget_exhausted"] = int(bool(unfinished))
+    if unfinished:
+        which = (
+            "time budget" if stats.out_of_time else f"work limit ({max_evaluations} evaluations)"
+        )
+        ranks = ", ".join(str(r) for r in unfinished)
+        solution.messages.append(
+            f"the witness search stopped at its {which}: hypothesis {ranks} stays "
+            "'not refuted' (consistent as far as narrowing can tell, but not proven)"
+        )
+    return stats
+
+
+def _add(total: WitnessStatistics, one: WitnessStatistics) -> None:
+    total.starts += one.starts
+    total.evaluations += one.evaluations
+    total.out_of_time |= one.out_of_time
+    total.out_of_work |= one.out_of_work
+    total.failed_starts += one.failed_starts

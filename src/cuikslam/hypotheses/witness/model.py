@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
+from cuikslam.hypotheses.witness._numeric import BIG, finite, half_width, midpoint, uniform
 from cuikslam.log.records import LandmarkPrior, Log, Observation, Odometry, PosePrior
 
 AIM_FRACTION = 0.1
@@ -54,12 +55,29 @@ LandmarkBoxes = Mapping[str, np.ndarray] | np.ndarray | None
 
 def aim_margin(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """How far inside ``[lo, hi]`` the optimiser aims: 10 % of the half-width, >= 1e-9."""
-    lo = np.asarray(lo, dtype=float)
-    hi = np.asarray(hi, dtype=float)
+    half = half_width(lo, hi)
     with np.errstate(invalid="ignore"):
-        half = (hi - lo) / 2.0
         margin = np.minimum(np.maximum(AIM_FRACTION * half, MIN_MARGIN), 0.5 * half)
     return np.where(np.isfinite(half), np.maximum(margin, 0.0), MIN_MARGIN)
+
+
+def _distance(dx: np.ndarray, dy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(r, r_safe, r2_safe)``: ``r = hypot(dx, dy)`` (no under- or overflow), then ``r``
+    and its square made positive and finite (for the Jacobians' ``dx / r`` and
+    ``dy / r**2``; where ``r`` is 0 the Jacobian is meaningless anyway)."""
+    r = np.hypot(dx, dy)
+    r_safe = np.where(r > 0, r, 1e-300)
+    with np.errstate(over="ignore", under="ignore"):
+        r2 = r * r
+    r2 = np.where((r2 > 0) & np.isfinite(r2), r2, np.where(r > 1.0, BIG, 1e-300))
+    return r, r_safe, r2
+
+
+def _cos_sin(angle: float) -> tuple[float, float]:
+    """``(cos, sin)`` of a float angle; NaN for an infinite or NaN one (no exception)."""
+    if not math.isfinite(angle):
+        return math.nan, math.nan
+    return math.cos(angle), math.sin(angle)
 
 
 def _wrap_near(value: np.ndarray, centre: np.ndarray) -> np.ndarray:
@@ -91,8 +109,7 @@ def _centres(boxes: np.ndarray | None) -> np.ndarray | None:
     """Centres of boxes (..., 2), NaN where a bound is missing or infinite."""
     if boxes is None:
         return None
-    out = (boxes[..., 0] + boxes[..., 1]) / 2
-    return np.where(np.isfinite(out), out, np.nan)
+    return midpoint(boxes[..., 0], boxes[..., 1])
 
 
 @dataclass
@@ -263,8 +280,8 @@ class HypothesisModel:
         for lid in self.landmark_ids:
             new_param(f"landmark {lid} x", (-math.inf, math.inf))
             new_param(f"landmark {lid} y", (-math.inf, math.inf))
-        self.param_lo = np.array(lo)
-        self.param_hi = np.array(hi)
+        self.param_lo = np.array(lo) + 0.0  # -0.0 -> 0.0
+        self.param_hi = np.array(hi) + 0.0
         self.param_names = names
         self.n_params = len(lo)
         if np.any(self.param_lo > self.param_hi):
@@ -316,14 +333,12 @@ class HypothesisModel:
             else:
                 angular.extend([ang] * len(b))
             labels.extend([f"{label} {q}" for q in range(len(b))])
-        self.check_lo = bounds[:, 0].copy()
-        self.check_hi = bounds[:, 1].copy()
+        self.check_lo = bounds[:, 0] + 0.0
+        self.check_hi = bounds[:, 1] + 0.0
         self.check_angular = np.array(angular, dtype=bool)
         self.check_labels = labels
         self.check_margin = aim_margin(self.check_lo, self.check_hi)
-        self.check_mid = np.where(
-            np.isfinite(self.check_lo + self.check_hi), (self.check_lo + self.check_hi) / 2, 0.0
-        )
+        self.check_mid = midpoint(self.check_lo, self.check_hi, 0.0)
         if np.any(self.check_lo > self.check_hi):
             self.problems.append("a measured interval is empty")
 
@@ -372,6 +387,7 @@ class HypothesisModel:
         self._memo = (key, P, J)
         return P, J
 
+    @np.errstate(all="ignore")  # overflow is clipped (see _numeric.finite)
     def _kinematics(self, p: np.ndarray, jacobian: bool) -> tuple[np.ndarray, np.ndarray | None]:
         n = self.n_poses
         P = np.empty((n, 3))
@@ -385,7 +401,7 @@ class HypothesisModel:
             d = p[st.distance]
             if st.forward:
                 th = t + p[st.turn]
-                c, s = math.cos(th), math.sin(th)
+                c, s = _cos_sin(th)
                 P[st.child] = (x + d * c, y + d * s, th)
                 if J is not None:
                     jt = J[st.parent, 2].copy()
@@ -396,7 +412,7 @@ class HypothesisModel:
                     J[st.child, 0, st.distance] += c
                     J[st.child, 1, st.distance] += s
             else:
-                c, s = math.cos(t), math.sin(t)
+                c, s = _cos_sin(t)
                 P[st.child] = (x - d * c, y - d * s, t - p[st.turn])
                 if J is not None:
                     jt = J[st.parent, 2]
@@ -416,6 +432,7 @@ class HypothesisModel:
         cx = self.landmark_param0 + 2 * j
         return cx, cx + 1
 
+    @np.errstate(all="ignore")  # overflow is clipped (see _numeric.finite)
     def evaluate(
         self, p: np.ndarray, jacobian: bool = False
     ) -> tuple[np.ndarray, np.ndarray | None]:
@@ -428,8 +445,7 @@ class HypothesisModel:
         i, j = self.obs_pose, self.obs_landmark
         dx = L[j, 0] - P[i, 0]
         dy = L[j, 1] - P[i, 1]
-        r2 = np.maximum(dx * dx + dy * dy, 1e-300)
-        r = np.sqrt(r2)
+        r, r_safe, r2 = _distance(dx, dy)
         values.append(r[self.range_sel])
         values.append((np.arctan2(dy, dx) - P[i, 2])[self.bearing_sel])
         values.append(P[self.prior_pose, self.prior_coord])
@@ -448,9 +464,9 @@ class HypothesisModel:
         assert JP is not None
         cx, cy = self._landmark_columns(j)
         rows = self._rows
-        Jr = -(dx / r)[:, None] * JP[i, 0] - (dy / r)[:, None] * JP[i, 1]
-        Jr[rows, cx] += dx / r
-        Jr[rows, cy] += dy / r
+        Jr = -(dx / r_safe)[:, None] * JP[i, 0] - (dy / r_safe)[:, None] * JP[i, 1]
+        Jr[rows, cx] += dx / r_safe
+        Jr[rows, cy] += dy / r_safe
         Jb = (dy / r2)[:, None] * JP[i, 0] - (dx / r2)[:, None] * JP[i, 1] - JP[i, 2]
         Jb[rows, cx] -= dy / r2
         Jb[rows, cy] += dx / r2
@@ -468,8 +484,9 @@ class HypothesisModel:
         jacs.append(
             ct[:, None] * jdx + st[:, None] * jdy + (-ddx * st + ddy * ct)[:, None] * JP[t_, 2]
         )
-        return v, np.concatenate(jacs).reshape(-1, self.n_params)
+        return v, finite(np.concatenate(jacs).reshape(-1, self.n_params), nan=0.0)
 
+    @np.errstate(all="ignore")  # overflow is clipped (see _numeric.finite)
     def equalities(
         self, p: np.ndarray, jacobian: bool = False
     ) -> tuple[np.ndarray, np.ndarray | None]:
@@ -489,6 +506,7 @@ class HypothesisModel:
         J = st[:, None] * jdx - ct[:, None] * jdy + (ddx * ct + ddy * st)[:, None] * JP[t_, 2]
         return f, J.reshape(-1, self.n_params)
 
+    @np.errstate(all="ignore")  # overflow is clipped (see _numeric.finite)
     def sensor_residuals(
         self, p: np.ndarray, jacobian: bool = False
     ) -> tuple[np.ndarray, np.ndarray | None]:
@@ -502,8 +520,7 @@ class HypothesisModel:
         L = self.landmarks(p)
         dx = L[None, :, 0] - P[:, None, 0]
         dy = L[None, :, 1] - P[:, None, 1]
-        r2 = np.maximum(dx * dx + dy * dy, 1e-300)
-        d = np.sqrt(r2)
+        d, d_safe, r2 = _distance(dx, dy)
         beta = np.remainder(np.arctan2(dy, dx) - P[:, None, 2] + np.pi, 2 * np.pi) - np.pi
         delta = SENSOR_MARGIN
         inf = np.full((n, m), np.inf)
@@ -538,13 +555,13 @@ class HypothesisModel:
             return res.ravel(), None
         assert JP is not None
         # derivatives of d and |beta| for every pair
-        Jd = -(dx / d)[..., None] * JP[:, None, 0] - (dy / d)[..., None] * JP[:, None, 1]
+        Jd = -(dx / d_safe)[..., None] * JP[:, None, 0] - (dy / d_safe)[..., None] * JP[:, None, 1]
         Jb = (dy / r2)[..., None] * JP[:, None, 0] - (dx / r2)[..., None] * JP[:, None, 1]
         Jb = Jb - JP[:, None, 2]
         jj = np.arange(m)
         cx, cy = self._landmark_columns(jj)
-        Jd[:, jj, cx] += dx / d
-        Jd[:, jj, cy] += dy / d
+        Jd[:, jj, cx] += dx / d_safe
+        Jd[:, jj, cy] += dy / d_safe
         Jb[:, jj, cx] -= dy / r2
         Jb[:, jj, cy] += dx / r2
         Jab = np.sign(beta)[..., None] * Jb
@@ -559,7 +576,7 @@ class HypothesisModel:
         Junseen = Junseen + np.where((unseen_kind == 2)[..., None], -Jnear, 0.0)
         Junseen = Junseen * (unseen_res > 0)[..., None]
         J = np.where(obs[..., None], Jseen, Junseen)
-        return res.ravel(), J.reshape(n * m, self.n_params)
+        return res.ravel(), finite(J.reshape(n * m, self.n_params), nan=0.0)
 
     # ------------------------------------------------------------------ starts
     def params_from_world(
@@ -583,13 +600,13 @@ class HypothesisModel:
             parent, child = P[st.parent], P[st.child]
             if st.forward:
                 turn = child[2] - parent[2]
-                u = (math.cos(child[2]), math.sin(child[2]))
+                u = _cos_sin(child[2])
                 delta = child[:2] - parent[:2]
             else:
                 turn = parent[2] - child[2]
-                u = (math.cos(parent[2]), math.sin(parent[2]))
+                u = _cos_sin(parent[2])
                 delta = parent[:2] - child[:2]
-            centre = (self.param_lo[st.turn] + self.param_hi[st.turn]) / 2
+            centre = midpoint(self.param_lo[st.turn], self.param_hi[st.turn], 0.0)
             p[st.turn] = float(_wrap_near(np.array(turn), np.array(centre)))
             p[st.distance] = float(delta[0] * u[0] + delta[1] * u[1])
         p[self.landmark_param0 :] = L.ravel()
@@ -628,7 +645,7 @@ class HypothesisModel:
         finite = np.isfinite(self.param_lo) & np.isfinite(self.param_hi)
         lo = np.where(finite, self.param_lo, 0.0)
         hi = np.where(finite, self.param_hi, 0.0)
-        p = (lo + hi) / 2 if rng is None else rng.uniform(lo, hi)
+        p = midpoint(lo, hi, 0.0) if rng is None else uniform(rng, lo, hi)
         pose_c = _centres(self.pose_boxes(poses_box))
         if pose_c is not None and rng is None:
             q = self.params_from_world(
@@ -642,7 +659,7 @@ class HypothesisModel:
         L = np.full((self.n_landmarks, 2), np.nan)
         for lo_, hi_, j, c in zip(*self._landmark_prior_rows(), strict=True):
             if np.isnan(L[j, c]) and math.isfinite(lo_) and math.isfinite(hi_):
-                L[j, c] = (lo_ + hi_) / 2
+                L[j, c] = midpoint(lo_, hi_)
         if land is not None:
             L = np.where(np.isnan(land), L, land)
         for j in range(self.n_landmarks):
@@ -675,7 +692,7 @@ class HypothesisModel:
             for r in ranges:
                 for b in bearings:
                     a = P[i, 2] + b
-                    starts.append(P[i, :2] + r * np.array([math.cos(a), math.sin(a)]))
+                    starts.append(finite(P[i, :2] + r * np.array(_cos_sin(a))))
         if len(rows) == 1 and rows[0][1] is not None and rows[0][2] is not None:
             return starts[0]
         pose_i = np.array([r[0] for r in rows])
@@ -685,6 +702,7 @@ class HypothesisModel:
         brg_w = np.array([1.0 if r[4] is None else max(r[4], 1e-3) for r in rows])
         has_r, has_b = ~np.isnan(rng_mid), ~np.isnan(brg_mid)
 
+        @np.errstate(all="ignore")
         def residuals(xy: np.ndarray) -> np.ndarray:
             dx = xy[0] - P[pose_i, 0]
             dy = xy[1] - P[pose_i, 1]
@@ -692,7 +710,7 @@ class HypothesisModel:
             brg = np.arctan2(dy, dx) - P[pose_i, 2]
             res_r = (dist - rng_mid)[has_r] / rng_w[has_r]
             res_b = _wrap_near(brg, brg_mid)[has_b] - brg_mid[has_b]
-            return np.concatenate([res_r, res_b / brg_w[has_b]])
+            return finite(np.concatenate([res_r, res_b / brg_w[has_b]]))
 
         best, best_cost = starts[0], math.inf
         for xy in starts[:16]:
@@ -715,7 +733,7 @@ class HypothesisModel:
 
     def _obs_half(self, q: int, kind: str) -> float | None:
         row = self._obs_row(q, kind)
-        return None if row is None else float((self.check_hi[row] - self.check_lo[row]) / 2)
+        return None if row is None else float(half_width(self.check_lo[row], self.check_hi[row]))
 
     def _landmark_prior_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         start = len(self.range_sel) + len(self.bearing_sel) + len(self.prior_pose)
@@ -740,7 +758,7 @@ class HypothesisModel:
 
     def _obs_mid(self, q: int, kind: str) -> float | None:
         row = self._obs_row(q, kind)
-        return None if row is None else float((self.check_lo[row] + self.check_hi[row]) / 2)
+        return None if row is None else float(self.check_mid[row])
 
     def point(self, p: np.ndarray, residual: float = 0.0) -> WitnessPoint:
         """The :class:`WitnessPoint` of a parameter vector."""
@@ -755,6 +773,7 @@ class HypothesisModel:
         )
 
     # ------------------------------------------------------------------ residuals
+    @np.errstate(all="ignore")  # overflow is clipped (see _numeric.finite)
     def centre_residuals(
         self, p: np.ndarray, jacobian: bool = False
     ) -> tuple[np.ndarray, np.ndarray | None]:
@@ -763,24 +782,29 @@ class HypothesisModel:
         the closure equalities. Their minimiser is a good start for the margins."""
         v, J = self.evaluate(p, jacobian)
         lo, hi = self.check_lo, self.check_hi
-        finite = np.isfinite(lo) & np.isfinite(hi) & (hi > lo)
-        half = np.where(finite, (hi - lo) / 2, 1.0)
-        r_checks = np.where(finite, (v - self.check_mid) / half, 0.0)
+        half = half_width(lo, hi)
+        bounded = np.isfinite(lo) & np.isfinite(hi) & (half > 0)
+        half = np.where(bounded, half, 1.0)
+        with np.errstate(over="ignore", invalid="ignore"):
+            r_checks = np.where(bounded, (v - self.check_mid) / half, 0.0)
         plo, phi = self.param_lo, self.param_hi
-        pfinite = np.isfinite(plo) & np.isfinite(phi) & (phi > plo)
-        with np.errstate(invalid="ignore"):
-            phalf = np.where(pfinite, (phi - plo) / 2, 1.0)
-            pmid = np.where(pfinite, (plo + phi) / 2, 0.0)
-        r_params = np.where(pfinite, (p - pmid) / phalf, 0.0)
+        phalf = half_width(plo, phi)
+        pbounded = np.isfinite(plo) & np.isfinite(phi) & (phalf > 0)
+        phalf = np.where(pbounded, phalf, 1.0)
+        pmid = midpoint(plo, phi, 0.0)
+        with np.errstate(over="ignore", invalid="ignore"):
+            r_params = np.where(pbounded, (p - pmid) / phalf, 0.0)
         f, Jf = self.equalities(p, jacobian)
-        out = np.concatenate([r_checks, r_params, f])
+        out = finite(np.concatenate([r_checks, r_params, f]))
         if not jacobian:
             return out, None
         assert J is not None and Jf is not None
-        Jc = (finite / half)[:, None] * J
-        Jp = np.diag(pfinite / phalf)
-        return out, np.concatenate([Jc, Jp, Jf])
+        with np.errstate(over="ignore", invalid="ignore"):
+            Jc = (bounded / half)[:, None] * J
+            Jp = np.diag(pbounded / phalf)
+        return out, finite(np.concatenate([Jc, Jp, Jf]), nan=0.0)
 
+    @np.errstate(all="ignore")  # overflow is clipped (see _numeric.finite)
     def margin_residuals(
         self, p: np.ndarray, jacobian: bool = False, scale_margin: float = 1.0
     ) -> tuple[np.ndarray, np.ndarray | None]:
@@ -789,8 +813,9 @@ class HypothesisModel:
         v, J = self.evaluate(p, jacobian)
         lo, hi = self.check_lo, self.check_hi
         margin = self.check_margin * scale_margin
-        half = np.where(np.isfinite(hi - lo) & (hi > lo), (hi - lo) / 2, 1.0)
-        with np.errstate(invalid="ignore"):
+        half = half_width(lo, hi)
+        half = np.where(np.isfinite(half) & (half > 0), half, 1.0)
+        with np.errstate(over="ignore", invalid="ignore"):
             below = (lo + margin - v) / half
             above = (v - (hi - margin)) / half
         below = np.where(np.isfinite(lo), below, -np.inf)
@@ -798,10 +823,11 @@ class HypothesisModel:
         res = np.maximum(below, 0.0) + np.maximum(above, 0.0)
         f, Jf = self.equalities(p, jacobian)
         sr, Js = self.sensor_residuals(p, jacobian)
-        out = np.concatenate([res, f, sr])
+        out = finite(np.concatenate([res, f, sr]))
         if not jacobian:
             return out, None
         assert J is not None and Jf is not None and Js is not None
         sign = np.where(below > 0, -1.0, 0.0) + np.where(above > 0, 1.0, 0.0)
-        Jr = (sign / half)[:, None] * J
-        return out, np.concatenate([Jr, Jf, Js])
+        with np.errstate(over="ignore", invalid="ignore"):
+            Jr = (sign / half)[:, None] * J
+        return out, finite(np.concatenate([Jr, Jf, Js]), nan=0.0)

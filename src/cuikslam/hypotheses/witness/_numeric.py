@@ -1,0 +1,63 @@
+"""Floating-point helpers for the witness search that stay finite on any valid input.
+
+A log may hold signed zeros (``[0.0, -0.0]`` is a valid interval), subnormal and huge
+magnitudes, zero-width intervals and infinite boxes. The optimisers of the witness search
+only *propose* points (:mod:`.verify` decides, in interval arithmetic), so here it is
+enough that nothing overflows to inf or NaN, no -0.0 reaches a routine that checks signs,
+and a midpoint or a random point of an interval lies inside it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+BIG = 1e100
+"""Residuals and Jacobian entries are clipped to this magnitude (their squares, summed
+over thousands of rows, stay finite)."""
+
+
+def midpoint(lo: np.ndarray, hi: np.ndarray, default: float = np.nan) -> np.ndarray:
+    """The midpoint of each interval ``[lo, hi]``, inside it, without overflow.
+
+    ``default`` where a bound is not finite. ``(lo + hi) / 2`` overflows for huge bounds,
+    and ``lo / 2 + hi / 2`` can fall outside a subnormal interval; this does neither.
+    """
+    lo = np.asarray(lo, dtype=float)
+    hi = np.asarray(hi, dtype=float)
+    finite = np.isfinite(lo) & np.isfinite(hi)
+    with np.errstate(over="ignore", invalid="ignore"):
+        width = hi - lo
+        mid = np.where(np.isfinite(width), lo + width / 2.0, lo / 2.0 + hi / 2.0)
+        mid = np.minimum(np.maximum(mid, lo), hi)
+    return np.where(finite, mid + 0.0, default)
+
+
+def half_width(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Half the width of each interval, without overflow (inf for an unbounded interval)."""
+    lo = np.asarray(lo, dtype=float)
+    hi = np.asarray(hi, dtype=float)
+    with np.errstate(over="ignore", invalid="ignore"):
+        width = hi - lo
+        half = np.where(np.isfinite(width), width / 2.0, hi / 2.0 - lo / 2.0)
+    return np.maximum(half, 0.0) + 0.0
+
+
+def uniform(rng: np.random.Generator, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """A random point of each (finite) interval ``[lo, hi]``, inside it.
+
+    ``numpy``'s ``uniform`` refuses ``[0.0, -0.0]`` (its width's sign bit is set) and
+    overflows on ``[-1e308, 1e308]``; a convex combination does neither.
+    """
+    lo = np.asarray(lo, dtype=float) + 0.0
+    hi = np.asarray(hi, dtype=float) + 0.0
+    u = rng.random(np.shape(lo))
+    with np.errstate(over="ignore", invalid="ignore"):
+        p = lo * (1.0 - u) + hi * u
+    p = np.where(np.isfinite(p), p, midpoint(lo, hi, 0.0))
+    return np.minimum(np.maximum(p, lo), hi) + 0.0
+
+
+def finite(values: np.ndarray, nan: float = BIG) -> np.ndarray:
+    """``values`` with NaN replaced by ``nan`` and every entry clipped to ``[-BIG, BIG]``."""
+    out = np.nan_to_num(np.asarray(values, dtype=float), nan=nan, posinf=BIG, neginf=-BIG)
+    return np.clip(out, -BIG, BIG)
