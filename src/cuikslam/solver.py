@@ -13,6 +13,7 @@ from dataclasses import replace
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
+from cuikslam.budget import DEFAULT_TIME_BUDGET, STRENGTHEN_SHARE, deadline_after, portion
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.hypotheses.search import (
     DEFAULT_MAX_HYPOTHESES,
@@ -27,13 +28,14 @@ from cuikslam.narrowing.consistency import (
     AUTO_LP_POSES,
     DEFAULT_LEVEL,
     Arrays,
+    StrengthenReport,
     resolve_level,
     strengthen,
 )
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, Status, propagate
 from cuikslam.results.solution import Hypothesis, Solution
 
-__all__ = ["hypothesis_from_graph", "solve"]
+__all__ = ["budget_message", "hypothesis_from_graph", "solve"]
 
 ProgressCallback = Callable[[int, int], None]
 """Called with (done, total) as a long solve advances."""
@@ -42,6 +44,9 @@ DEFAULT_CERTIFY_LIMIT = 1
 """Best-ranked hypotheses that get a verified witness (a failed search costs ~1 s)."""
 CERTIFY_MAX_POSES = 50
 """No witness search beyond this many poses (it grows to tens of seconds at 100 poses)."""
+SEARCH_SHARE = 0.8
+"""Fraction of the time budget the correspondence search (with its survivors' stronger
+level) may use; the witness search gets the rest, and whatever the search did not need."""
 
 
 def hypothesis_from_graph(
@@ -73,6 +78,7 @@ def solve(
     certify_limit: int = DEFAULT_CERTIFY_LIMIT,
     rtol: float = DEFAULT_RTOL,
     progress: ProgressCallback | None = None,
+    time_budget: float | None = DEFAULT_TIME_BUDGET,
 ) -> Solution:
     """Solve ``log`` and return every hypothesis that narrowing could not refute.
 
@@ -81,8 +87,20 @@ def solve(
     landmark, the correspondence search of :func:`cuikslam.hypotheses.solve_unknown` runs.
     The ``certify_limit`` best-ranked hypotheses are then certified: a solution point is
     searched and verified in interval arithmetic, making them *proven consistent*.
+
+    ``time_budget`` (seconds, None for no limit) bounds the whole solve. With known
+    correspondence the fixpoint of the factors always runs to the end (it takes
+    milliseconds); the stronger level may use ``STRENGTHEN_SHARE`` of the time left, and
+    the witness search the rest. With unknown correspondence the search (and its
+    survivors' stronger level) gets ``SEARCH_SHARE`` of the budget. A stage that runs out
+    stops soundly and says so: the level actually reached (e.g. ``"lp (budget)"``, see
+    :mod:`cuikslam.narrowing.consistency`) in ``Solution.consistency`` and each
+    hypothesis' ``consistency``, a hypothesis left ``not refuted`` rather than proven, an
+    incomplete search, each with a message in ``Solution.messages``.
     """
     ensure_round_to_nearest()
+    start = time.perf_counter()
+    deadline = deadline_after(time_budget)
     n_poses = len(log.pose_ids)
     chosen = resolve_level(consistency, n_poses)
     notes = []
@@ -102,31 +120,43 @@ def solve(
             strengthen_during=strengthen_during,
             rtol=rtol,
             progress=progress,
+            deadline=portion(deadline, SEARCH_SHARE),
         )
     else:
-        solution = _solve_known(log, consistency, rtol, progress)
+        solution = _solve_known(log, consistency, rtol, progress, deadline)
     solution.messages[:0] = notes
     if n_poses > CERTIFY_MAX_POSES:
         certify_limit = 0  # the witness search is a dense least-squares problem
-    start = time.perf_counter()
-    certify(log, replace(solution, hypotheses=solution.hypotheses[:certify_limit]))
-    solution.timings["certify_s"] = time.perf_counter() - start
+    certify_start = time.perf_counter()
+    certify(
+        log, replace(solution, hypotheses=solution.hypotheses[:certify_limit]), deadline=deadline
+    )
+    solution.timings["certify_s"] = time.perf_counter() - certify_start
+    solution.timings["total_s"] = time.perf_counter() - start
+    if time_budget is not None:
+        solution.timings["time_budget_s"] = float(time_budget)
     return solution
 
 
 def _solve_known(
-    log: Log, consistency: str, rtol: float, progress: ProgressCallback | None
+    log: Log,
+    consistency: str,
+    rtol: float,
+    progress: ProgressCallback | None,
+    deadline: float | None,
 ) -> Solution:
     start = time.perf_counter()
     assignment = [str(o.landmark) for o in log.observations]
     graph = KinematicGraph.from_log(log)
     result = propagate(graph, rtol=rtol)
+    report = StrengthenReport(level=consistency)
     if not result.is_empty:
         head, entry_factor, entry_next = graph.adjacency()
         arrays = Arrays(graph.factor_table(), head, entry_factor, entry_next)
         status, applications = strengthen(
-            arrays, result.lo, result.hi, consistency, rtol, DEFAULT_ROUNDS, progress
-        )
+            arrays, result.lo, result.hi, consistency, rtol, DEFAULT_ROUNDS, progress,
+            deadline=portion(deadline, STRENGTHEN_SHARE), report=report,
+        )  # fmt: skip
         result.applications += applications
         if status == INCONSISTENT:
             result.status = Status.INCONSISTENT
@@ -138,7 +168,16 @@ def _solve_known(
         "landmarks": len(graph.landmark_ids),
         "factors": graph.n_factors,
         "operator_applications": result.applications,
+        "lp_rounds": report.lp_rounds,
+        "lp_solved": report.lp.solved,
+        "lp_limit_hits": report.lp.limit_hits,
+        "lp_retries": report.lp.retries,
+        "lp_skipped": report.lp.skipped,
+        "lp_budget_exhausted": int(report.budget_exhausted),
     }
+    messages = []
+    if report.budget_exhausted and not result.is_empty:
+        messages.append(budget_message(consistency, report))
     if result.is_empty:
         return Solution(
             hypotheses=[],
@@ -148,11 +187,35 @@ def _solve_known(
             consistency=consistency,
             messages=["the log is inconsistent: its constraints contract to empty (a proof)"],
         )
-    hypothesis = hypothesis_from_graph(graph, result.lo, result.hi, assignment, consistency)
+    hypothesis = hypothesis_from_graph(graph, result.lo, result.hi, assignment, report.level)
     return Solution(
         hypotheses=[hypothesis],
         statistics=statistics,
         timings={"solve_s": elapsed},
         log_path=log.path,
-        consistency=consistency,
+        consistency=report.level,
+        messages=messages,
+    )
+
+
+def budget_message(level: str, report: StrengthenReport) -> str:
+    """The message of a stronger level cut short by its time budget.
+
+    Parameters
+    ----------
+    level : str
+        The level asked for.
+    report : StrengthenReport
+        What :func:`~cuikslam.narrowing.consistency.strengthen` reached.
+
+    Returns
+    -------
+    str
+        One sentence for ``Solution.messages``.
+    """
+    return (
+        f"the time budget ran out during the '{level}' level: the boxes reach level "
+        f"'{report.level}' ({report.lp_rounds} polytope round(s), {report.lp.solved} LPs); "
+        "they are sound, only wider than the full level would make them (raise "
+        "--time-budget, or time_budget=None, for the full level)"
     )

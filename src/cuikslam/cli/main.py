@@ -16,6 +16,7 @@ from pathlib import Path
 from rich.console import Console
 
 from cuikslam import __version__
+from cuikslam.budget import DEFAULT_TIME_BUDGET
 from cuikslam.cli._common import (
     CommandError,
     check_figure_path,
@@ -71,6 +72,7 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         max_hypotheses=args.max_hypotheses,
         strengthen_limit=args.strengthen_limit,
         strengthen_during=args.strengthen_during,
+        time_budget=args.time_budget,
     )
 
 
@@ -191,6 +193,15 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
         help="also apply level lp after every ambiguous observation while at most this many "
         "hypotheses live: fewer survivors, slower (default %(default)s: off)",
     )
+    p.add_argument(
+        "--time-budget",
+        type=_time_budget,
+        default=DEFAULT_TIME_BUDGET,
+        metavar="SECONDS",
+        help="seconds the solve may take, shared by its stages; a stage that runs out stops "
+        "soundly and says so (boxes at a weaker level, a hypothesis left 'not refuted', an "
+        "incomplete search); 'none' for no limit (default %(default)s)",
+    )
 
 
 def _int_at_least(minimum: int) -> Callable[[str], int]:
@@ -206,6 +217,19 @@ def _int_at_least(minimum: int) -> Callable[[str], int]:
         return value
 
     return parse
+
+
+def _time_budget(text: str) -> float | None:
+    """An argparse type: seconds (a positive number), or ``none`` / ``inf`` for no limit."""
+    if text.strip().lower() in ("none", "inf", "infinity"):
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
+    if not value > 0 or math.isnan(value):
+        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text}")
+    return None if math.isinf(value) else value
 
 
 _positive_int = _int_at_least(1)

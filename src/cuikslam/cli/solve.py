@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from rich.console import Console
 
+from cuikslam.budget import DEFAULT_TIME_BUDGET
 from cuikslam.cli._common import check_output_path, progress_bar, write_output
 from cuikslam.log.reader import read_log_file
 from cuikslam.results.io import write_result_csv, write_result_file
@@ -102,6 +103,7 @@ def run_solve(
     max_hypotheses: int = 10_000,
     strengthen_limit: int = 100,
     strengthen_during: int = 0,
+    time_budget: float | None = DEFAULT_TIME_BUDGET,
 ) -> int:
     # Everything that can be refused is checked before the solve (and before the solver,
     # slow to import, is loaded): a bad log or output path fails fast and writes nothing.
@@ -121,6 +123,7 @@ def run_solve(
             strengthen_limit=strengthen_limit,
             strengthen_during=strengthen_during,
             progress=progress,
+            time_budget=time_budget,
         )
     if json_path:
         write_output(json_path, lambda: write_result_file(solution, json_path))
