@@ -143,8 +143,10 @@ def test_strengthening_during_the_search_keeps_the_truth(world: dict) -> None:
 
 def test_strengthening_during_the_search_prunes_the_paper() -> None:
     log, truth = simulate_paper(seed=0, unknown=True)
-    plain = solve_unknown(log, consistency="lp", strengthen_limit=0)
-    during = solve_unknown(log, consistency="lp", strengthen_limit=0, strengthen_during=6)
+    plain = solve_unknown(log, consistency="lp", strengthen_limit=0, local_frame=False)
+    during = solve_unknown(
+        log, consistency="lp", strengthen_limit=0, strengthen_during=6, local_frame=False
+    )
     assert during.complete
     assert len(during.hypotheses) < 0.9 * len(plain.hypotheses)
     assert true_survivor(during, truth) == 0
@@ -153,8 +155,8 @@ def test_strengthening_during_the_search_prunes_the_paper() -> None:
 
 def test_beyond_the_limit_the_best_ranked_gets_the_stronger_level() -> None:
     log, truth = simulate_paper(seed=0, unknown=True)
-    hull = solve_unknown(log, consistency="hull")
-    lp = solve_unknown(log, consistency="lp", strengthen_limit=10)
+    hull = solve_unknown(log, consistency="hull", local_frame=False)
+    lp = solve_unknown(log, consistency="lp", strengthen_limit=10, local_frame=False)
     assert len(lp.hypotheses) > 10
     assert lp.consistency == "hull"  # not every survivor reached lp
     assert [h.consistency for h in lp.hypotheses[:3]] == ["lp", "hull", "hull"]
@@ -206,8 +208,8 @@ def test_mixed_log_keeps_named_observations() -> None:
 
 def test_max_hypotheses_limits_the_report_not_the_search() -> None:
     log, _ = simulate_paper(seed=0, unknown=True)
-    everything = solve_unknown(log, consistency="hull")
-    solution = solve_unknown(log, consistency="hull", max_hypotheses=3)
+    everything = solve_unknown(log, consistency="hull", local_frame=False)
+    solution = solve_unknown(log, consistency="hull", max_hypotheses=3, local_frame=False)
     assert solution.complete
     assert len(solution.hypotheses) == 3
     assert solution.statistics["survivors"] == len(everything.hypotheses) > 3
@@ -219,14 +221,14 @@ def test_max_hypotheses_limits_the_report_not_the_search() -> None:
 
 def test_a_node_budget_stops_the_search_with_an_account() -> None:
     log, _ = simulate_paper(seed=0, unknown=True)
-    solution = solve_unknown(log, consistency="hull", max_nodes=50)
+    solution = solve_unknown(log, consistency="hull", max_nodes=50, local_frame=False)
     assert not solution.complete
     assert solution.statistics["branch_points"] == 50
     assert solution.statistics["unexplored_subtrees"] > 0
     assert 0 < solution.statistics["explored_fraction"] < 1
     assert any("INCOMPLETE" in m and "unexplored" in m for m in solution.messages)
     seen: list[list[int]] = []
-    streamed = solve_unknown(log, consistency="hull", on_survivor=seen.append)
+    streamed = solve_unknown(log, consistency="hull", on_survivor=seen.append, local_frame=False)
     assert len(seen) == streamed.statistics["survivors"] == len(streamed.hypotheses)
 
 
@@ -280,3 +282,17 @@ def test_check_truth_names_every_miss_and_counts_every_bound() -> None:
         "pose 1 y=1.5 not in [0.0, 1.0]",
         "landmark L1 x=7.0 not in [5.0, 6.0]",
     ]
+
+
+def test_the_local_frame_refutes_what_boxes_cannot_and_keeps_the_truth() -> None:
+    log, truth = simulate_paper(seed=0, unknown=True)
+    boxes = solve_unknown(log, consistency="hull", local_frame=False)
+    local = solve_unknown(log, consistency="hull")
+    assert local.complete and boxes.complete
+    assert local.statistics["refuted_in_local_frame"] > 0
+    assert len(local.hypotheses) < len(boxes.hypotheses) / 10
+    assert true_survivor(local, truth) == 0
+    assert_truth_inside(local, truth, 0)
+    assert {partition(h.assignment) for h in local.hypotheses} <= {
+        partition(h.assignment) for h in boxes.hypotheses
+    }

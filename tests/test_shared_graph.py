@@ -25,7 +25,7 @@ from cuikslam.simulate import simulate_paper, simulate_random_world
 
 def _explored(log, max_nodes: int = 10**6) -> tuple[Explorer, Node, object]:
     """A hull-level search of ``log``, stopped after ``max_nodes`` expansions."""
-    explorer = Explorer(build_problem(log), DEFAULT_RTOL, "hull", 0)
+    explorer = Explorer(build_problem(log), DEFAULT_RTOL, "hull", 0, local=False)
     root = explorer.root()
     assert root is not None
     return explorer, root, explore(explorer, root, Budget(max_nodes=max_nodes), 10**6)
@@ -75,12 +75,12 @@ def test_every_child_equals_a_full_copy(monkeypatch: pytest.MonkeyPatch) -> None
         return child
 
     monkeypatch.setattr(SharedGraph, "add_rows", checked_add_rows)
-    solve_unknown(simulate_paper(seed=0, unknown=True)[0], consistency="hull")
+    solve_unknown(simulate_paper(seed=0, unknown=True)[0], consistency="hull", local_frame=False)
     for seed, n_poses, size in ((1, 30, (30.0, 20.0)), (2, 40, (60.0, 45.0))):
         log, _ = simulate_random_world(
             seed=seed, n_poses=n_poses, n_landmarks=6, size=size, unknown=True
         )
-        solve_unknown(log, consistency="hull", max_nodes=400)
+        solve_unknown(log, consistency="hull", max_nodes=400, local_frame=False)
     assert checked["children"] > 1000 and checked["empty"] > 100
 
 
@@ -99,7 +99,7 @@ def test_maintenance_changes_no_result(
         seed=seed, n_poses=n_poses, n_landmarks=6, size=size, unknown=True
     )
     monkeypatch.setattr(_shared, "MIN_MAINTENANCE_LOAD", 10**12)
-    never = solve_unknown(log, consistency="hull", max_nodes=300)
+    never = solve_unknown(log, consistency="hull", max_nodes=300, local_frame=False)
     calls = {"rebase": 0, "compact": 0}
     for name in calls:
         original = getattr(SharedGraph, name)
@@ -111,7 +111,7 @@ def test_maintenance_changes_no_result(
         monkeypatch.setattr(SharedGraph, name, counted)
     monkeypatch.setattr(_shared, "MIN_MAINTENANCE_LOAD", 4)
     monkeypatch.setattr(search, "MAINTAIN_EVERY", 4)
-    often = solve_unknown(log, consistency="hull", max_nodes=300)
+    often = solve_unknown(log, consistency="hull", max_nodes=300, local_frame=False)
     assert len(never.hypotheses) > 10
     assert calls["rebase"] > 5 and calls["compact"] > 2
     assert _fingerprint(never) == _fingerprint(often)

@@ -236,6 +236,13 @@ class SharedGraph:
         o = overlay
         return k.values(o.idx, o.lo, o.hi, self.base_lo, self.base_hi, variables)
 
+    def rows_of(self, overlay: Overlay) -> np.ndarray:
+        """The factor rows the branch of ``overlay`` holds (base set and its own)."""
+        ids = k.union(np.flatnonzero(self.in_base[: self.n_rows]), overlay.rows)
+        rows = self.rows[ids]
+        rows[:, KIND] = self.kinds[ids]
+        return rows
+
     def materialize(self, overlay: Overlay) -> tuple[np.ndarray, np.ndarray]:
         """Full private copies of the branch's bounds."""
         lo, hi = self.base_lo.copy(), self.base_hi.copy()
@@ -245,9 +252,7 @@ class SharedGraph:
     def standalone(self, overlay: Overlay) -> tuple[np.ndarray, np.ndarray, Arrays]:
         """The branch as a private graph: its bounds, and its rows in pool order, linked."""
         lo, hi = self.materialize(overlay)
-        ids = k.union(np.flatnonzero(self.in_base[: self.n_rows]), overlay.rows)
-        rows = self.rows[ids]
-        rows[:, KIND] = self.kinds[ids]
+        rows = self.rows_of(overlay)
         head = np.full(len(lo), -1, dtype=np.int64)
         entry_factor = np.zeros(N_SLOTS * max(len(rows), 1), dtype=np.int64)
         entry_next = np.zeros_like(entry_factor)

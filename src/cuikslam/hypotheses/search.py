@@ -27,6 +27,7 @@ import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.hypotheses._shared import EMPTY_OVERLAY, Overlay, SharedGraph
+from cuikslam.hypotheses.local import LocalCheck
 from cuikslam.hypotheses.problem import (
     Problem,
     build_problem,
@@ -82,6 +83,8 @@ class SearchStatistics:
     """UNSEEN constraints added (pose-landmark pairs close enough to matter)."""
     created: int = 0
     """Children created (each a consistent-looking partial hypothesis)."""
+    refuted_in_local_frame: int = 0
+    """Children whose window around the decided pose is inconsistent in that pose's frame."""
     refuted_by_consistency: int = 0
     """Nodes or survivors of hull consistency refuted by the stronger consistency level."""
     survivors: int = 0
@@ -142,7 +145,9 @@ class Budget:
 class Explorer:
     """Expands nodes of the search tree of one problem."""
 
-    def __init__(self, problem: Problem, rtol: float, level: str, during: int) -> None:
+    def __init__(
+        self, problem: Problem, rtol: float, level: str, during: int, local: bool = True
+    ) -> None:
         self.problem = problem
         self.stats = SearchStatistics()
         self.graph = SharedGraph(problem.lo, problem.hi, problem.ranked_vars, rtol, DEFAULT_ROUNDS)
@@ -150,6 +155,9 @@ class Explorer:
         self.during = during
         """The children of the first ``during`` decisions get ``lp`` when ambiguous."""
         self.n_named = len(problem.named)
+        self.local = (
+            LocalCheck(problem.pose_x, len(problem.lo), rtol, DEFAULT_ROUNDS) if local else None
+        )
         self._decisions_of: dict[int, list[int]] = {}
         """Pose -> its decisions, in order."""
         for k, d in enumerate(problem.decisions):
@@ -253,11 +261,17 @@ class Explorer:
         return [replace(c, share=share) for c in out], options
 
     def _after_decision(self, child: Node) -> Node | None:
-        """Negative information once the decided observation completes its pose's scan."""
+        """Negative information once the decided observation completes its pose's scan,
+        then the window of its pose narrowed in that pose's frame."""
         d = self.problem.decisions[child.depth - 1]
-        if not (self.problem.has_sensor and d.completes_scan):
+        if self.problem.has_sensor and d.completes_scan:
+            child = self._unseen_scans(child, [d.pose])
+        if child is None or self.local is None:
             return child
-        return self._unseen_scans(child, [d.pose])
+        if self.local.refutes(self.graph, child.overlay, d.pose, d.pose_x):
+            self.stats.refuted_in_local_frame += 1
+            return None
+        return child
 
     def _unseen_scans(self, node: Node, poses: list[int]) -> Node | None:
         """Add UNSEEN constraints between each of ``poses`` (whose scans ``node`` has fully
@@ -474,6 +488,7 @@ def solve_unknown(
     deadline: float | None = None,
     max_nodes: int | None = None,
     on_survivor: Callable[[list[int]], None] | None = None,
+    local_frame: bool = True,
 ) -> Solution:
     """Solve a log whose observations may lack landmark ids; return the surviving hypotheses.
 
@@ -502,6 +517,10 @@ def solve_unknown(
         Node expansions after which the search stops, incomplete.
     on_survivor : callable, optional
         Called with the decisions (landmark numbers) of every survivor as it is found.
+    local_frame : bool
+        Narrow the window of each decided pose in that pose's frame, where relative
+        geometry is tight although absolute boxes are wide (:mod:`.local`); off only to
+        measure what it prunes.
 
     Returns
     -------
@@ -513,7 +532,7 @@ def solve_unknown(
     ensure_round_to_nearest()
     consistency = resolve_level(consistency, len(log.pose_ids))
     problem = build_problem(log)
-    explorer = Explorer(problem, rtol, consistency, strengthen_during)
+    explorer = Explorer(problem, rtol, consistency, strengthen_during, local_frame)
     messages: list[str] = []
     root = explorer.root()
     outcome = _Outcome([], [], None)
