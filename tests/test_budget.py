@@ -1,0 +1,165 @@
+"""Every stage has a budget: cut anywhere, the result stays sound and says what it reached.
+
+Deadlines are replaced by counters (the n-th look at the clock says "expired"), so each
+cut point is reached deterministically, without timed assertions.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+
+from cuikslam.budget import deadline_after, expired, portion, remaining
+from cuikslam.cli.main import build_parser
+from cuikslam.graph import KinematicGraph
+from cuikslam.hypotheses.witness import certify
+from cuikslam.narrowing import consistency, lp_bounds, propagate
+from cuikslam.narrowing.consistency import (
+    BUDGET_SUFFIX,
+    Arrays,
+    StrengthenReport,
+    strengthen,
+)
+from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL
+from cuikslam.results.solution import NOT_REFUTED, PROVEN, check_truth
+from cuikslam.simulate import simulate_paper
+from cuikslam.solver import solve
+
+
+def _arrays(log) -> tuple[KinematicGraph, Arrays, np.ndarray, np.ndarray]:
+    graph = KinematicGraph.from_log(log)
+    result = propagate(graph)
+    head, entry_factor, entry_next = graph.adjacency()
+    return graph, Arrays(graph.factor_table(), head, entry_factor, entry_next), result.lo, result.hi
+
+
+def _contains_truth(graph: KinematicGraph, lo: np.ndarray, hi: np.ndarray, truth) -> bool:
+    poses = graph.pose_boxes(lo, hi)
+    for pose, xyt in zip(truth.pose_ids, truth.poses_xyt, strict=True):
+        box = poses[graph.pose_ids.index(pose)]
+        if not (box[0, 0] <= xyt[0] <= box[0, 1] and box[1, 0] <= xyt[1] <= box[1, 1]):
+            return False
+    return True
+
+
+class _Clock:
+    """``expired`` that answers True from its ``n``-th call on (and counts the calls)."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.calls = 0
+
+    def __call__(self, deadline: float | None) -> bool:
+        self.calls += 1
+        return self.calls > self.n
+
+
+def test_deadline_helpers() -> None:
+    assert deadline_after(None) is None and deadline_after(float("inf")) is None
+    assert remaining(None) == float("inf") and not expired(None)
+    assert expired(deadline_after(0.0)) and remaining(deadline_after(-5.0)) == 0.0
+    assert not expired(deadline_after(3600.0))
+    assert portion(None, 0.5) is None
+    soon, later = portion(deadline_after(100.0), 0.1), deadline_after(100.0)
+    assert soon is not None and later is not None and soon < later
+
+
+def test_an_expired_deadline_leaves_the_boxes_at_hull() -> None:
+    log, _ = simulate_paper(seed=0)
+    _, arrays, lo, hi = _arrays(log)
+    lo0, hi0 = lo.copy(), hi.copy()
+    report = StrengthenReport()
+    status, _ = strengthen(arrays, lo, hi, "lp", DEFAULT_RTOL, DEFAULT_ROUNDS,
+                           deadline=deadline_after(0.0), report=report)  # fmt: skip
+    assert status == consistency.CONSISTENT
+    assert report.level == "hull" and report.budget_exhausted
+    assert np.array_equal(lo, lo0) and np.array_equal(hi, hi0)
+
+
+@pytest.mark.parametrize("level", ["lp", "lp-split"])
+def test_cut_at_every_point_the_truth_stays_inside(level: str, monkeypatch) -> None:
+    """The deadline strikes after the n-th look at the clock, for n = 0, 1, 2, ...: the
+    boxes always hold the truth, and the level reached is reported honestly."""
+    log, truth = simulate_paper(seed=1)
+    graph, arrays, lo0, hi0 = _arrays(log)
+    full_lo, full_hi = lo0.copy(), hi0.copy()
+    full = StrengthenReport()
+    strengthen(arrays, full_lo, full_hi, level, DEFAULT_RTOL, DEFAULT_ROUNDS, report=full)
+    assert full.level == level and not full.budget_exhausted
+    seen_levels = set()
+    for n in itertools.chain(range(6), range(10, 200, 37)):
+        clock = _Clock(n)
+        monkeypatch.setattr(consistency, "expired", clock)
+        monkeypatch.setattr(lp_bounds, "expired", clock)
+        lo, hi = lo0.copy(), hi0.copy()
+        report = StrengthenReport()
+        status, _ = strengthen(arrays, lo, hi, level, DEFAULT_RTOL, DEFAULT_ROUNDS,
+                               deadline=deadline_after(3600.0), report=report)  # fmt: skip
+        assert status == consistency.CONSISTENT
+        assert _contains_truth(graph, lo, hi, truth), (n, report)
+        assert np.all(lo >= lo0) and np.all(hi <= hi0)  # never wider than the fixpoint
+        assert report.budget_exhausted == (report.level != level), (n, report.level)
+        assert report.level in ("hull", "lp", level, "lp" + BUDGET_SUFFIX, level + BUDGET_SUFFIX)
+        seen_levels.add(report.level)
+    assert "hull" in seen_levels and "lp" + BUDGET_SUFFIX in seen_levels
+
+
+def test_lps_stopped_by_their_limits_still_give_sound_bounds(monkeypatch) -> None:
+    """Every LP stopped after one simplex iteration: bounds from whatever multipliers the
+    LP had, so the boxes hold the truth (and are never wider than the fixpoint)."""
+    monkeypatch.setattr(lp_bounds, "LP_MIN_ITERATIONS", 1)
+    monkeypatch.setattr(lp_bounds, "LP_ITERATIONS_PER_SIZE", 0)
+    log, truth = simulate_paper(seed=2)
+    graph, arrays, lo0, hi0 = _arrays(log)
+    lo, hi = lo0.copy(), hi0.copy()
+    report = StrengthenReport()
+    strengthen(arrays, lo, hi, "lp", DEFAULT_RTOL, DEFAULT_ROUNDS, report=report)
+    assert report.lp.solved == report.lp.limit_hits > 0 and report.lp.optimal == 0
+    assert report.level == "lp"  # limits of single LPs are not the level's budget
+    assert _contains_truth(graph, lo, hi, truth)
+    assert np.all(lo >= lo0) and np.all(hi <= hi0)
+
+
+def test_a_spent_budget_is_reported_not_hidden() -> None:
+    log, truth = simulate_paper(seed=0)
+    spent = solve(log, consistency="lp", time_budget=1e-9)
+    assert spent.consistency == "hull" and spent.best.consistency == "hull"
+    assert spent.best.status == NOT_REFUTED and spent.best.witness is None
+    assert spent.statistics["lp_budget_exhausted"] == 1
+    assert spent.statistics["witness_budget_exhausted"] == 1
+    assert any("time budget" in m for m in spent.messages)
+    assert any("witness search stopped" in m for m in spent.messages)
+    assert check_truth(spent.best, truth.pose_ids, truth.poses_xyt).ok
+    unlimited = solve(log, consistency="lp", time_budget=None)
+    assert unlimited.consistency == "lp" and unlimited.best.status == PROVEN
+    assert unlimited.statistics["lp_budget_exhausted"] == 0
+    assert not any("budget" in m for m in unlimited.messages)
+
+
+def test_the_witness_work_limit_leaves_the_hypothesis_not_refuted() -> None:
+    log, _ = simulate_paper(seed=0)
+    solution = solve(log, consistency="hull", certify_limit=0, time_budget=None)
+    stats = certify(log, solution, max_evaluations=0)
+    assert stats.out_of_work and not stats.out_of_time
+    assert solution.best.status == NOT_REFUTED
+    assert solution.statistics["witness_budget_exhausted"] == 1
+    assert any("work limit" in m for m in solution.messages)
+    certify(log, solution)
+    assert solution.best.status == PROVEN
+
+
+@pytest.mark.parametrize(
+    ("text", "value"), [("2.5", 2.5), ("0.01", 0.01), ("none", None), ("inf", None)]
+)
+def test_time_budget_option(text: str, value: float | None) -> None:
+    args = build_parser().parse_args(["solve", "log.jsonl", "--time-budget", text])
+    assert args.time_budget == value
+
+
+@pytest.mark.parametrize("text", ["0", "-1", "nan", "abc", ""])
+def test_bad_time_budgets_are_refused(text: str) -> None:
+    with pytest.raises(SystemExit) as caught:
+        build_parser().parse_args(["solve", "log.jsonl", "--time-budget", text])
+    assert caught.value.code == 2
