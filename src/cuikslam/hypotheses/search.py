@@ -36,7 +36,12 @@ from cuikslam.hypotheses.problem import (
 )
 from cuikslam.log.records import Log
 from cuikslam.narrowing._propagate import INCONSISTENT
-from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level, strengthen
+from cuikslam.narrowing.consistency import (
+    DEFAULT_LEVEL,
+    StrengthenReport,
+    resolve_level,
+    strengthen,
+)
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL
 from cuikslam.results.solution import Hypothesis, Solution
 from cuikslam.results.summary import describe, summarize, summary_to_json
@@ -155,6 +160,8 @@ class Explorer:
         self.during = during
         """The children of the first ``during`` decisions get ``lp`` when ambiguous."""
         self.n_named = len(problem.named)
+        self.deadline: float | None = None
+        """When the stronger level must stop (it then reports the level it reached)."""
         self.local = (
             LocalCheck(problem.pose_x, len(problem.lo), rtol, DEFAULT_ROUNDS) if local else None
         )
@@ -321,12 +328,16 @@ class Explorer:
             return node
         graph = self.graph
         lo, hi, arrays = graph.standalone(node.overlay)
-        status, applications = strengthen(arrays, lo, hi, level, graph.rtol, DEFAULT_ROUNDS)
+        report = StrengthenReport()
+        status, applications = strengthen(
+            arrays, lo, hi, level, graph.rtol, DEFAULT_ROUNDS, deadline=self.deadline, report=report
+        )
         self.stats.operator_applications += applications
         if status == INCONSISTENT:
             self.stats.refuted_by_consistency += 1
             return None
-        return replace(node, overlay=graph.overlay_of(lo, hi, node.overlay.rows), level=level)
+        overlay = graph.overlay_of(lo, hi, node.overlay.rows)
+        return replace(node, overlay=overlay, level=report.level)
 
     # ---------------------------------------------------------------- replay
     def replay(self, prefix: list[int]) -> Node | None:
@@ -460,7 +471,9 @@ def _strengthen_survivors(
         return survivors, level
     if len(survivors) <= limit:
         out = [explorer.strengthen_node(n, level) for n in survivors]
-        return [n for n in out if n is not None], level
+        kept = [n for n in out if n is not None]
+        short = [n.level for n in kept if n.level != level]  # a deadline cut them short
+        return kept, short[0] if short else level
     messages.append(
         f"{len(survivors)} hypotheses survived: the '{level}' level was applied to the "
         f"best-ranked one only (to all when at most {limit} survive; raise "
@@ -533,6 +546,7 @@ def solve_unknown(
     consistency = resolve_level(consistency, len(log.pose_ids))
     problem = build_problem(log)
     explorer = Explorer(problem, rtol, consistency, strengthen_during, local_frame)
+    explorer.deadline = deadline
     messages: list[str] = []
     root = explorer.root()
     outcome = _Outcome([], [], None)
