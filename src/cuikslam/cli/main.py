@@ -95,6 +95,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     for option, value in (("--max-range", args.max_range), ("--fov", args.fov)):
         if not math.isfinite(value):
             raise CommandError(f"{option} {value}: must be a finite number")
+    pairs = {
+        name: _number_pair(option, getattr(args, name))
+        for name, option in (
+            ("size", "--size"),
+            ("step", "--step"),
+            ("odometry_bounds", "--odometry-bounds"),
+            ("observation_bounds", "--observation-bounds"),
+        )
+    }
     try:
         if args.world == "paper":
             log, truth = simulate_paper(seed=args.seed, unknown=args.unknown)
@@ -106,6 +115,10 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                 classes=classes,
                 max_range=args.max_range,
                 fov=args.fov,
+                size=pairs["size"],
+                step_length=pairs["step"],
+                odometry_bounds=pairs["odometry_bounds"],
+                observation_bounds=pairs["observation_bounds"],
                 unknown=args.unknown,
             )
     except ValueError as err:  # an impossible world (WorldSpec checks its parameters)
@@ -113,6 +126,18 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         raise CommandError(f"simulate {args.world}: {problem}") from None
     _write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)
     return EXIT_OK
+
+
+def _number_pair(option: str, text: str) -> tuple[float, float]:
+    """Two finite numbers written ``A,B`` (an option's value)."""
+    parts = text.split(",")
+    try:
+        a, b = (float(p) for p in parts)
+    except ValueError:
+        raise CommandError(f"{option} {text!r}: expected two numbers A,B") from None
+    if not (math.isfinite(a) and math.isfinite(b)):
+        raise CommandError(f"{option} {text!r}: must be finite numbers")
+    return a, b
 
 
 def _write_log_and_truth(log, truth, out: Path, truth_out: Path, *, quiet: bool) -> None:
@@ -290,6 +315,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-range", type=float, default=8.0, help="random world: sensor range [m]")
     p.add_argument(
         "--fov", type=float, default=6.283185307179586, help="random world: field of view [rad]"
+    )
+    p.add_argument(
+        "--size", default="40,30", help="random world: room width,height [m] (default 40,30)"
+    )
+    p.add_argument(
+        "--step", default="0.5,2", help="random world: shortest,longest step [m] (default 0.5,2)"
+    )
+    p.add_argument(
+        "--odometry-bounds",
+        default="0.05,0.1",
+        help="random world: turn [rad],distance [m] error bounds (default 0.05,0.1)",
+    )
+    p.add_argument(
+        "--observation-bounds",
+        default="0.05,0.02",
+        help="random world: range [m],bearing [rad] error bounds (default 0.05,0.02)",
     )
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=_cmd_simulate)
