@@ -71,13 +71,16 @@ def log_fingerprint(log: Log) -> str:
 
 
 def solve_kwargs(consistency: str | None) -> dict[str, Any]:
-    """``{"consistency": level}`` when asked for and :func:`solve` takes it, else ``{}``."""
+    """``{"consistency": level}`` when asked for and :func:`solve` takes it, else ``{}``;
+    plus ``time_budget=None`` (the full level is measured, not what a budget allows)."""
+    parameters = inspect.signature(solve).parameters
+    kwargs: dict[str, Any] = {"time_budget": None} if "time_budget" in parameters else {}
     if consistency is None:
-        return {}
-    if "consistency" not in inspect.signature(solve).parameters:
+        return kwargs
+    if "consistency" not in parameters:
         print(f"note: solve() has no 'consistency' keyword; ignoring --consistency {consistency}")
-        return {}
-    return {"consistency": consistency}
+        return kwargs
+    return {**kwargs, "consistency": consistency}
 
 
 def compute_inner_hull(seed: int, random_starts: int = 3, refine: int = 3) -> dict[str, Any]:
@@ -89,7 +92,7 @@ def compute_inner_hull(seed: int, random_starts: int = 3, refine: int = 3) -> di
     log, _ = simulate_paper(seed)
     assignment = [str(o.landmark) for o in log.observations]
     start = time.perf_counter()
-    h = solve(log).best
+    h = solve(log, time_budget=None).best
     hull = inner_hull(
         log, assignment, h.poses, h.landmarks, n_random=random_starts, refine=refine, seed=seed
     )
