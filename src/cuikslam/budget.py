@@ -31,12 +31,12 @@ __all__ = [
     "remaining",
 ]
 
-DEFAULT_TIME_BUDGET = 2.5
+DEFAULT_TIME_BUDGET = 2.0
 """Seconds a solve may take by default (``cuikslam solve --time-budget``).
 
 Chosen so that ``cuikslam solve`` on a log of up to 50 poses finishes in under 5 s end to
-end on a loaded 2-core machine, where importing the solver and loading its compiled
-kernels alone takes 1.5-2.5 s."""
+end on a loaded 2-core machine, where starting Python, importing the solver and loading
+its compiled kernels alone take 1.5-2.5 s."""
 STRENGTHEN_SHARE = 0.7
 """Fraction of the time left after hull narrowing that the stronger level may use; the
 witness search gets the rest (and whatever the stronger level did not need)."""
