@@ -21,7 +21,8 @@ import math
 
 import numpy as np
 
-from cuikslam.graph.encoding import KIND, N_SLOTS, ODOMETRY, XA, XB
+from cuikslam._jit import jit
+from cuikslam.graph.encoding import N_SLOTS, ODOMETRY, XA, XB, YB
 from cuikslam.hypotheses import _kernels as k
 from cuikslam.hypotheses._shared import Overlay, SharedGraph
 from cuikslam.narrowing._propagate import INCONSISTENT, propagate_arrays
@@ -46,6 +47,8 @@ class LocalCheck:
         self._is_pose = np.zeros(n_vars, dtype=np.bool_)
         for x in pose_x.values():
             self._is_pose[x : x + 3] = True
+        self._in_window = np.zeros(n_vars, dtype=np.bool_)
+        self._local_id = np.full(n_vars, -1, dtype=np.int64)
         self.rtol = rtol
         self.rounds = rounds
         self.checks = 0
@@ -55,24 +58,18 @@ class LocalCheck:
         """True when the window ending at ``pose`` is proven inconsistent in its frame."""
         self.checks += 1
         window = self._window[pose]
-        rows = graph.rows_of(overlay)
-        in_window = np.isin(rows[:, XA], window)
-        odometry = rows[:, KIND] == ODOMETRY
-        keep = in_window & (~odometry | np.isin(rows[:, XB], window))
-        sub = rows[keep]
-        if len(sub) == 0:
+        local, variables, free = window_rows(
+            window, graph.rows, graph.kinds, graph.in_base, overlay.rows, graph.head,
+            graph.entry_factor, graph.entry_next, self._in_window, self._local_id,
+            self._is_pose,
+        )  # fmt: skip
+        if len(local) == 0 or self._local_id[pose_x] < 0:
+            self._local_id[variables] = -1
             return False
-        slots = sub[:, 1:]
-        variables = np.unique(slots[slots >= 0])
-        local = sub.copy()
-        local[:, 1:] = np.where(slots >= 0, np.searchsorted(variables, slots), -1)
-        anchor_vars = np.arange(pose_x, pose_x + 3)
-        if not np.all(np.isin(anchor_vars, variables)):
-            return False
+        anchor = self._local_id[pose_x : pose_x + 3].copy()
+        self._local_id[variables] = -1
         lo, hi = graph.values(overlay, variables)
-        free = self._is_pose[variables] | np.isin(variables, _landmark_vars(sub))
         lo[free], hi[free] = -math.inf, math.inf
-        anchor = np.searchsorted(variables, anchor_vars)
         lo[anchor], hi[anchor] = 0.0, 0.0
         head = np.full(len(variables), -1, dtype=np.int64)
         entry_factor = np.zeros(N_SLOTS * len(local), dtype=np.int64)
@@ -88,7 +85,71 @@ class LocalCheck:
         return False
 
 
-def _landmark_vars(rows: np.ndarray) -> np.ndarray:
-    """x and y variables of the landmarks the (observation and UNSEEN) rows name."""
-    lm = rows[rows[:, KIND] != ODOMETRY]
-    return np.concatenate([lm[:, XB], lm[:, XB] + 1])
+@jit
+def window_rows(
+    window: np.ndarray,
+    rows: np.ndarray,
+    kinds: np.ndarray,
+    in_base: np.ndarray,
+    held: np.ndarray,
+    head: np.ndarray,
+    entry_factor: np.ndarray,
+    entry_next: np.ndarray,
+    in_window: np.ndarray,
+    local_id: np.ndarray,
+    is_pose: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The branch's rows whose poses all lie in ``window`` (pose x variables), renumbered.
+
+    A branch holds the pool rows of the base set and the sorted rows ``held``. Returns the
+    local rows, the global variable of each local one, and which local variables start
+    free (poses and landmarks: not invariant under a rigid motion). ``in_window`` and
+    ``local_id`` are scratch arrays, left as found except ``local_id`` of the returned
+    variables (the caller resets them).
+    """
+    for x in window:
+        in_window[x] = True
+    count = 0
+    for x in window:
+        e = head[x]
+        while e >= 0:
+            count += 1
+            e = entry_next[e]
+    found = np.empty(count, dtype=np.int64)
+    n_found = 0
+    for x in window:
+        e = head[x]
+        while e >= 0:
+            f = entry_factor[e]
+            e = entry_next[e]
+            if kinds[f] == ODOMETRY and not (in_window[rows[f, XA]] and in_window[rows[f, XB]]):
+                continue  # a move to or from a pose outside the window
+            if not in_base[f]:
+                at = np.searchsorted(held, f)
+                if at >= held.shape[0] or held[at] != f:
+                    continue  # another branch's row
+            found[n_found] = f
+            n_found += 1
+    for x in window:
+        in_window[x] = False
+    picked = np.unique(found[:n_found])
+    local = np.empty((picked.shape[0], rows.shape[1]), dtype=np.int64)
+    variables = np.empty(picked.shape[0] * (rows.shape[1] - 1), dtype=np.int64)
+    free = np.zeros(variables.shape[0], dtype=np.bool_)
+    n = 0
+    for i in range(picked.shape[0]):
+        f = picked[i]
+        local[i, 0] = kinds[f]
+        for s in range(1, rows.shape[1]):
+            v = rows[f, s]
+            if v < 0:
+                local[i, s] = -1
+                continue
+            if local_id[v] < 0:
+                local_id[v] = n
+                variables[n] = v
+                landmark = kinds[f] != ODOMETRY and (s == XB or s == YB)
+                free[n] = is_pose[v] or landmark
+                n += 1
+            local[i, s] = local_id[v]
+    return local, variables[:n], free[:n]
