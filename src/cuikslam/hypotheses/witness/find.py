@@ -39,6 +39,10 @@ _HOPELESS = 0.5
 """A hinge residual (in half-widths) beyond which aiming closer to the bounds is not tried."""
 MAX_EVALUATIONS = 2000
 """Residual evaluations (each with its Jacobian) one hypothesis' search may use at most."""
+CENTRE_EVALUATIONS = 50
+"""Evaluations of the least-squares estimate that starts each local search."""
+MARGIN_EVALUATIONS = 200
+"""Evaluations of each hinge (aimed margins) least-squares run."""
 
 
 @dataclass
@@ -103,7 +107,7 @@ def _polish_equalities(model: HypothesisModel, p: np.ndarray, iterations: int = 
 
 
 def _solve_margins(
-    model: HypothesisModel, x0: np.ndarray, meter: _Meter, max_nfev: int = 200
+    model: HypothesisModel, x0: np.ndarray, meter: _Meter
 ) -> tuple[np.ndarray, float, np.ndarray | None]:
     """Least squares from ``x0``: the centre estimate, then the hinge residuals of the
     aimed margins; returns (params, largest hinge residual, verified box or None)."""
@@ -118,7 +122,7 @@ def _solve_margins(
         q[free] = z
         return q
 
-    def least_squares_on(residuals: Any, z0: np.ndarray) -> np.ndarray:
+    def least_squares_on(residuals: Any, z0: np.ndarray, max_nfev: int) -> np.ndarray:
         memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
 
         def both(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -147,14 +151,14 @@ def _solve_margins(
     # the least-squares estimate first (smooth, so it escapes the hinges' flat spots), then
     # the margins from there; when the aimed margins do not fit together (a thin solution
     # set), aim closer to the bounds
-    z = least_squares_on(model.centre_residuals, z)
+    z = least_squares_on(model.centre_residuals, z, CENTRE_EVALUATIONS)
     candidates = [_polish_equalities(model, full(z))]
     for scale in (1.0, 0.1, 0.01):
 
         def hinge(q: np.ndarray, jacobian: bool, s: float = scale) -> Any:
             return model.margin_residuals(q, jacobian, s)
 
-        z = least_squares_on(hinge, z)
+        z = least_squares_on(hinge, z, MARGIN_EVALUATIONS)
         p = _polish_equalities(model, full(z))
         box = verified_box(model, p)
         if box is not None:
