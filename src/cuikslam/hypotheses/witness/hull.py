@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import minimize
 
+from cuikslam.hypotheses.witness._numeric import half_width, uniform
 from cuikslam.hypotheses.witness.find import find_point
 from cuikslam.hypotheses.witness.model import (
     AIM_FRACTION,
@@ -103,7 +104,8 @@ def inner_hull(
     rng = np.random.default_rng(seed)
     free = model.free
     lo_c, hi_c = model.check_lo, model.check_hi
-    half = np.where(np.isfinite(hi_c - lo_c), (hi_c - lo_c) / 2, 0.0)
+    half = half_width(lo_c, hi_c)
+    half = np.where(np.isfinite(half), half, 0.0)
     low_side = np.isfinite(lo_c)
     high_side = np.isfinite(hi_c)
     pm = aim_margin(model.param_lo, model.param_hi) * (margin / AIM_FRACTION)
@@ -262,5 +264,5 @@ def _random_start(
 def _uniform_in(boxes: np.ndarray, rng: np.random.Generator, fallback: np.ndarray) -> np.ndarray:
     """A random point of each box (..., 2); ``fallback`` where a bound is not finite."""
     finite = np.isfinite(boxes).all(axis=-1)
-    pts = rng.uniform(np.where(finite, boxes[..., 0], 0), np.where(finite, boxes[..., 1], 0))
+    pts = uniform(rng, np.where(finite, boxes[..., 0], 0), np.where(finite, boxes[..., 1], 0))
     return np.where(finite, pts, fallback)
