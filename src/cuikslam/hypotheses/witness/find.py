@@ -213,10 +213,10 @@ def find_point(
     rng = np.random.default_rng(seed)
     starts = []
     if poses_box is not None or landmarks_box is not None:
-        starts.append(lambda: model.initial_params(poses_box, landmarks_box))
-    starts.append(lambda: model.initial_params())
+        starts.append(lambda: model.initial_params(poses_box, landmarks_box, deadline=deadline))
+    starts.append(lambda: model.initial_params(deadline=deadline))
     for _ in range(restarts):
-        starts.append(lambda: model.initial_params(None, landmarks_box, rng=rng))
+        starts.append(lambda: model.initial_params(None, landmarks_box, rng=rng, deadline=deadline))
     best: tuple[float, np.ndarray] | None = None
     with blas_single_thread(), np.errstate(all="ignore"):
         for start in starts:

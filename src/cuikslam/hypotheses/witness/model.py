@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import least_squares
 
+from cuikslam.budget import OutOfTime, expired
 from cuikslam.hypotheses.witness._numeric import BIG, finite, half_width, midpoint, uniform
 from cuikslam.log.records import LandmarkPrior, Log, Observation, Odometry, PosePrior
 
@@ -638,10 +639,14 @@ class HypothesisModel:
         poses_box: PoseBoxes = None,
         landmarks_box: LandmarkBoxes = None,
         rng: np.random.Generator | None = None,
+        deadline: float | None = None,
     ) -> np.ndarray:
         """A starting point: interval midpoints (or random points of the intervals when
         ``rng`` is given), refined by the boxes' centres where given; landmarks at their box
-        or prior centre, else where their first observation's midpoint puts them."""
+        or prior centre, else where their first observation's midpoint puts them.
+
+        Raises :class:`~cuikslam.budget.OutOfTime` when ``deadline`` passes while fitting
+        landmarks (a few small least-squares fits each)."""
         finite = np.isfinite(self.param_lo) & np.isfinite(self.param_hi)
         lo = np.where(finite, self.param_lo, 0.0)
         hi = np.where(finite, self.param_hi, 0.0)
@@ -664,6 +669,8 @@ class HypothesisModel:
             L = np.where(np.isnan(land), L, land)
         for j in range(self.n_landmarks):
             if np.any(np.isnan(L[j])):
+                if expired(deadline):
+                    raise OutOfTime
                 L[j] = self._fit_landmark(j, P, rng)
         L = np.where(np.isnan(L), 0.0, L)
         p[self.landmark_param0 :] = L.ravel()
