@@ -435,6 +435,7 @@ def _hypothesis(explorer: Explorer, node: Node) -> Hypothesis:
     first = [*p.first_seen, *(p.decisions[k].record for k in node.blocks)]
     order = sorted(range(len(xs)), key=lambda n: first[n])
     prefix = "N" if p.named else "L"
+    taken = set(p.named)
     names: dict[int, str] = {}
     count = 0
     for n in order:
@@ -442,6 +443,8 @@ def _hypothesis(explorer: Explorer, node: Node) -> Hypothesis:
             names[n] = p.named[n]
         else:
             count += 1
+            while f"{prefix}{count}" in taken:  # a user's id is never reused
+                count += 1
             names[n] = f"{prefix}{count}"
     assignment = [""] * p.n_observations
     for position, n in p.named_assignment.items():

@@ -166,9 +166,11 @@ def _angle_inside(box: np.ndarray, angle: Fraction) -> bool:
     decide containment would need ``angle + 2πk`` within 1e-400 of a float bound, which
     for k != 0 (2πk irrational) no float-sized truth comes near.
     """
-    lo, hi = _exact(float(box[0])), _exact(float(box[1]))
-    if lo > hi:
+    if not float(box[0]) <= float(box[1]):
         return False
+    if math.isinf(float(box[0])) or math.isinf(float(box[1])):
+        return True  # unbounded: holds every angle
+    lo, hi = _exact(float(box[0])), _exact(float(box[1]))
     if hi - lo >= _TWO_PI_HI:
         return True
     # the least k with angle + 2πk >= lo lies between these two (2π in [LO, HI])
@@ -217,11 +219,20 @@ def check_truth(
     return TruthReport(misses, checked)
 
 
+def _at_most(a: float | Fraction, b: float | Fraction) -> bool:
+    """``a <= b`` exactly, where a float may be infinite (an unbounded box)."""
+    if isinstance(a, float) and math.isinf(a):
+        return a < 0
+    if isinstance(b, float) and math.isinf(b):
+        return b > 0
+    return _exact(a) <= _exact(b)
+
+
 def _check_xy(label: str, box: np.ndarray, xy: Sequence[ExactLike], misses: list[str]) -> int:
     """Append a line to ``misses`` for each of x, y outside its box; return 2 (bounds checked)."""
     for j, name in enumerate(("x", "y")):
         lo, hi = float(box[j, 0]), float(box[j, 1])
         value = _exact(xy[j])
-        if not (lo <= hi and _exact(lo) <= value <= _exact(hi)):
+        if not (lo <= hi and _at_most(lo, value) and _at_most(value, hi)):
             misses.append(f"{label} {name}={_show(xy[j])} not in {box[j].tolist()}")
     return 2

@@ -1,0 +1,71 @@
+"""Logs on which an adversarial tester broke the search or its reporting (kept forever)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from cuikslam.hypotheses import solve_unknown
+from cuikslam.log import parse_log_lines
+from cuikslam.results.solution import Hypothesis, check_truth
+
+PRIOR = '{"type": "prior", "pose": 0, "x": [0, 0], "y": [0, 0], "theta": [0, 0]}'
+
+
+def test_a_new_landmark_never_takes_a_user_id() -> None:
+    log = parse_log_lines(
+        [
+            PRIOR,
+            '{"type": "observation", "pose": 0, "class": "c", "range": [4, 4], '
+            '"bearing": [1.5707963267948966, 1.5707963267948968], "landmark": "N1"}',
+            '{"type": "observation", "pose": 0, "class": "c", "range": [3, 3], '
+            '"bearing": [3.141592653589793, 3.1415926535897936]}',
+        ]
+    )
+    (h,) = solve_unknown(log, consistency="hull").hypotheses
+    assert h.assignment == ["N1", "N2"]
+    assert h.landmark_ids == ["N1", "N2"]
+
+
+def test_an_unbounded_box_contains_every_truth() -> None:
+    inf = np.inf
+    h = Hypothesis(
+        ["A"], [0], np.array([[[0, 0], [0, 0], [-inf, inf]]]), ["A"], ["c"],
+        np.array([[[-inf, inf], [1.0, inf]]]),
+    )  # fmt: skip
+    report = check_truth(h, [0], [["0", "0", "1e300"]], {"A": ["3", "1.8"]})
+    assert report.ok and report.checked == 5
+    outside = check_truth(h, [0], [["0", "0", "0"]], {"A": ["3", "0.5"]})
+    assert outside.misses == ["landmark A y=0.5 not in [1.0, inf]"]
+
+
+def test_a_truth_beyond_the_report_is_not_called_missing(tmp_path: Path) -> None:
+    log = tmp_path / "two.jsonl"
+    log.write_text(
+        "\n".join(
+            [
+                PRIOR,
+                '{"type": "observation", "pose": 0, "class": "c", "range": [4.9, 5.1], '
+                '"bearing": [0.9, 1.0]}',
+                '{"type": "odometry", "from": 0, "to": 1, "turn": [0, 0], "distance": [1, 1]}',
+                '{"type": "observation", "pose": 1, "class": "c", "range": [4.4, 4.8], '
+                '"bearing": [1.0, 1.2]}',
+            ]
+        )
+        + "\n"
+    )
+    truth = tmp_path / "two.truth.json"
+    truth.write_text(
+        '{"poses": {"0": ["0", "0", "0"], "1": ["1", "0", "0"]}, '
+        '"landmarks": {"A": ["2.9", "4.0", "c"], "B": ["2.8", "4.1", "c"]}, '
+        '"obs_truth": ["A", "B"]}'
+    )
+    run = [sys.executable, "-m", "cuikslam.cli.main", "solve", str(log), "--truth", str(truth)]
+    everything = subprocess.run(run, capture_output=True, text=True)
+    assert everything.returncode == 0, everything.stdout + everything.stderr
+    one = subprocess.run([*run, "--max-hypotheses", "1"], capture_output=True, text=True)
+    assert one.returncode == 0, one.stdout + one.stderr
+    assert "reported of 2 survivors" in one.stdout
