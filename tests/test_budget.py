@@ -151,11 +151,13 @@ def test_the_witness_work_limit_leaves_the_hypothesis_not_refuted() -> None:
 
 
 @pytest.mark.parametrize(
-    ("text", "value"), [("2.5", 2.5), ("0.01", 0.01), ("none", None), ("inf", None)]
+    ("text", "value"),
+    [("2.5", 2.5), ("0.01", 0.01), ("none", None), ("inf", None), ("auto", "auto")],
 )
-def test_time_budget_option(text: str, value: float | None) -> None:
+def test_time_budget_option(text: str, value: float | str | None) -> None:
     args = build_parser().parse_args(["solve", "log.jsonl", "--time-budget", text])
     assert args.time_budget == value
+    assert build_parser().parse_args(["solve", "log.jsonl"]).time_budget == "auto"
 
 
 @pytest.mark.parametrize("text", ["0", "-1", "nan", "abc", ""])

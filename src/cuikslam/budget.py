@@ -21,7 +21,9 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 
 __all__ = [
+    "COMMAND_TARGET",
     "DEFAULT_TIME_BUDGET",
+    "MIN_COMMAND_BUDGET",
     "STRENGTHEN_SHARE",
     "OutOfTime",
     "blas_single_thread",
@@ -37,6 +39,11 @@ DEFAULT_TIME_BUDGET = 2.0
 Chosen so that ``cuikslam solve`` on a log of up to 50 poses finishes in under 5 s end to
 end on a loaded 2-core machine, where starting Python, importing the solver and loading
 its compiled kernels alone take 1.5-2.5 s."""
+COMMAND_TARGET = 4.0
+"""Seconds ``cuikslam solve`` aims at end to end with its default ``--time-budget auto``:
+the solve gets what start-up (imports, loading the compiled kernels) left of it..."""
+MIN_COMMAND_BUDGET = 1.0
+"""...but at least this much."""
 STRENGTHEN_SHARE = 0.7
 """Fraction of the time left after hull narrowing that the stronger level may use; the
 witness search gets the rest (and whatever the stronger level did not need)."""

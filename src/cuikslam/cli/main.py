@@ -9,14 +9,16 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from rich.console import Console
 
 from cuikslam import __version__
-from cuikslam.budget import DEFAULT_TIME_BUDGET
+from cuikslam.budget import COMMAND_TARGET, MIN_COMMAND_BUDGET
 from cuikslam.cli._common import (
     CommandError,
     check_figure_path,
@@ -26,6 +28,9 @@ from cuikslam.cli._common import (
 from cuikslam.log.errors import LogFormatError
 
 __all__ = ["main"]
+
+STARTED = time.perf_counter()
+"""When the command started (near enough: this module is the first one it imports)."""
 
 EXIT_OK = 0
 EXIT_RESULT = 1
@@ -73,6 +78,7 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         strengthen_limit=args.strengthen_limit,
         strengthen_during=args.strengthen_during,
         time_budget=args.time_budget,
+        started=STARTED,
     )
 
 
@@ -221,11 +227,13 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--time-budget",
         type=_time_budget,
-        default=DEFAULT_TIME_BUDGET,
+        default="auto",
         metavar="SECONDS",
         help="seconds the solve may take, shared by its stages; a stage that runs out stops "
         "soundly and says so (boxes at a weaker level, a hypothesis left 'not refuted', an "
-        "incomplete search); 'none' for no limit (default %(default)s)",
+        f"incomplete search); 'none' for no limit; 'auto' (default): the command aims at "
+        f"{COMMAND_TARGET:g} s end to end, the solve gets what start-up left (at least "
+        f"{MIN_COMMAND_BUDGET:g} s)",
     )
 
 
@@ -244,10 +252,13 @@ def _int_at_least(minimum: int) -> Callable[[str], int]:
     return parse
 
 
-def _time_budget(text: str) -> float | None:
-    """An argparse type: seconds (a positive number), or ``none`` / ``inf`` for no limit."""
+def _time_budget(text: str) -> float | str | None:
+    """An argparse type: seconds (a positive number), ``none`` / ``inf`` for no limit, or
+    ``auto``."""
     if text.strip().lower() in ("none", "inf", "infinity"):
         return None
+    if text.strip().lower() == "auto":
+        return "auto"
     try:
         value = float(text)
     except ValueError:
@@ -381,5 +392,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
 
 
+def entry() -> None:
+    """The console script: :func:`main`, then end the process at once.
+
+    Finalising the interpreter once the compiled kernels are loaded (numba, LLVM) takes
+    0.3-1 s on a loaded machine, for nothing: by then every output file is written and
+    closed, and the streams are flushed here. An exception (a bug) or ``SystemExit``
+    (usage errors, ``--help``) leaves the normal way.
+    """
+    status = main()
+    try:
+        sys.stdout.flush()
+        sys.stderr.flush()
+    except (OSError, ValueError):  # a closed pipe: nothing more can be said
+        pass
+    os._exit(status)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    entry()

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import time
+
 from rich.console import Console
 
-from cuikslam.budget import DEFAULT_TIME_BUDGET
+from cuikslam.budget import COMMAND_TARGET, MIN_COMMAND_BUDGET
 from cuikslam.cli._common import check_output_path, progress_bar, write_output
 from cuikslam.log.reader import read_log_file
 from cuikslam.results.io import write_result_csv, write_result_file
@@ -110,7 +112,8 @@ def run_solve(
     max_hypotheses: int = 10_000,
     strengthen_limit: int = 100,
     strengthen_during: int = 0,
-    time_budget: float | None = DEFAULT_TIME_BUDGET,
+    time_budget: float | str | None = "auto",
+    started: float | None = None,
 ) -> int:
     # Everything that can be refused is checked before the solve (and before the solver,
     # slow to import, is loaded): a bad log or output path fails fast and writes nothing.
@@ -122,6 +125,9 @@ def run_solve(
 
     from cuikslam.solver import solve
 
+    if time_budget == "auto":  # what start-up left of the command's target, within limits
+        spent = 0.0 if started is None else time.perf_counter() - started
+        time_budget = max(MIN_COMMAND_BUDGET, COMMAND_TARGET - spent)
     with progress_bar("solving", enabled=not quiet) as progress:
         solution = solve(
             log,
