@@ -126,7 +126,8 @@ def _windows(factors: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 def _total_width(lo: np.ndarray, hi: np.ndarray, variables: np.ndarray) -> float:
-    widths = hi[variables] - lo[variables]
+    with np.errstate(invalid="ignore"):
+        widths = hi[variables] - lo[variables]
     return float(np.sum(widths[np.isfinite(widths)]))
 
 
@@ -271,7 +272,8 @@ def _polytope_rounds(
     active = np.ones(len(lo), dtype=bool)
     warm = [WarmStarts() for _ in windows]
     for round_index in range(MAX_LP_ROUNDS):
-        before = hi - lo
+        with np.errstate(invalid="ignore"):  # inf - inf for unbounded variables
+            before = hi - lo
         skipped = report.lp.skipped
         cut = False
         if round_index % FULL_ROUND_EVERY == 0:
