@@ -1,0 +1,149 @@
+"""The reproducers of issue 9, as regression tests (``tests/data/repro``, see its README).
+
+Each is a valid log; those with a ``.truth.json`` come from a known true world. With
+default options the true partition must survive, its boxes must hold the exact truth
+(headings modulo 2π), and ``cuikslam solve`` must exit 0 without a traceback. The others
+are consistent logs that crashed or ran for minutes: they must exit 0 without a
+traceback, within a generous hang guard (not a performance assertion).
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from _exact import MP
+from cuikslam.hypotheses import solve_unknown
+from cuikslam.log import Log, read_log_file
+from cuikslam.solver import solve
+from worlds import SEARCH_LEVELS, Truth, log_violations, true_index, truth_misses
+
+REPRO = Path(__file__).parent / "data" / "repro"
+WITH_TRUTH = sorted(p for p in REPRO.glob("*.jsonl") if p.with_suffix(".truth.json").is_file())
+WITHOUT_TRUTH = sorted(p for p in REPRO.glob("*.jsonl") if p not in WITH_TRUTH)
+HANG_GUARD = 60
+"""Seconds before a subprocess counts as hung (the issue asks for 5 s end to end)."""
+QUICK = ["signed-zero-crash.jsonl", "subnormal-crash.jsonl"]
+"""Logs of a pose or two, solved in the test process too."""
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _compiled() -> None:
+    """Compile the kernels first: a cold numba cache costs tens of seconds, which the solve's
+    time budget would count (a cold start is not what these tests are about)."""
+    for path in WITH_TRUTH:
+        solve(read_log_file(path), time_budget=None)
+
+
+def truth_of(log_path: Path) -> Truth:
+    return Truth.from_file(log_path.with_suffix(".truth.json"))
+
+
+def named_ids(log: Log) -> set[str]:
+    """Landmark ids the log itself names: these are the true ids."""
+    return {r.landmark for r in log.landmark_priors} | {
+        o.landmark for o in log.observations if o.landmark is not None
+    }
+
+
+def run_cli(*args: object, cwd: Path) -> subprocess.CompletedProcess[str]:
+    env = {**os.environ, "COLUMNS": "200", "NO_COLOR": "1"}
+    try:
+        return subprocess.run(
+            [sys.executable, "-m", "cuikslam.cli.main", *map(str, args)],
+            cwd=cwd,
+            capture_output=True,
+            text=True,
+            timeout=HANG_GUARD,
+            env=env,
+            check=False,
+        )
+    except subprocess.TimeoutExpired:
+        pytest.fail(f"cuikslam {' '.join(map(str, args))} still running after {HANG_GUARD} s")
+
+
+def test_every_reproducer_is_here() -> None:
+    assert [p.name for p in WITH_TRUTH] == [
+        "fov-true-refuted.jsonl",
+        "mixed-true-refuted.jsonl",
+        "mixed-truth-outside.jsonl",
+    ]
+    assert [p.name for p in WITHOUT_TRUTH] == [
+        "certify-97s.jsonl",
+        "lp-slow-or-hang.jsonl",
+        "signed-zero-crash.jsonl",
+        "subnormal-crash.jsonl",
+    ]
+
+
+@pytest.mark.parametrize("path", WITH_TRUTH, ids=lambda p: p.stem)
+def test_reproducer_measures_its_world(path: Path) -> None:
+    """The test data itself: every interval holds the truth, every sensor rule holds."""
+    assert log_violations(read_log_file(path), truth_of(path)) == []
+
+
+@pytest.mark.parametrize("path", WITH_TRUTH, ids=lambda p: p.stem)
+def test_reproducer_keeps_the_truth_with_default_options(path: Path) -> None:
+    log, truth = read_log_file(path), truth_of(path)
+    solution = solve(log)
+    assert not solution.refuted, solution.messages
+    index = true_index(solution, truth, named_ids(log))
+    assert index >= 0, (
+        f"the true correspondence is not among {len(solution.hypotheses)} survivors "
+        f"(complete: {solution.complete}; {solution.messages})"
+    )
+    assert truth_misses(solution.hypotheses[index], truth, named_ids(log)) == []
+
+
+@pytest.mark.parametrize("level", sorted(SEARCH_LEVELS))
+@pytest.mark.parametrize("path", WITH_TRUTH, ids=lambda p: p.stem)
+def test_reproducer_keeps_the_truth_at_every_level(path: Path, level: str) -> None:
+    log, truth = read_log_file(path), truth_of(path)
+    solution = solve_unknown(log, **SEARCH_LEVELS[level])
+    assert solution.complete
+    index = true_index(solution, truth, named_ids(log))
+    assert index >= 0, f"the true correspondence is not among {len(solution.hypotheses)} survivors"
+    assert truth_misses(solution.hypotheses[index], truth, named_ids(log)) == []
+
+
+@pytest.mark.parametrize("path", WITH_TRUTH, ids=lambda p: p.stem)
+def test_reproducer_cli_checks_the_truth(path: Path, tmp_path: Path) -> None:
+    truth = path.with_suffix(".truth.json")
+    result = run_cli("solve", path, "--json", tmp_path / "out.json", "--truth", truth, cwd=tmp_path)
+    assert "Traceback" not in result.stderr, result.stderr
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
+    assert "all contain the truth" in result.stdout
+    assert (tmp_path / "out.json").is_file()
+
+
+@pytest.mark.parametrize("path", WITHOUT_TRUTH, ids=lambda p: p.stem)
+def test_reproducer_cli_exits_0(path: Path, tmp_path: Path) -> None:
+    result = run_cli("solve", path, "--json", tmp_path / "out.json", cwd=tmp_path)
+    assert "Traceback" not in result.stderr, result.stderr
+    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
+    assert (tmp_path / "out.json").is_file()
+
+
+@pytest.mark.parametrize("name", QUICK)
+def test_odd_numbers_are_solved_in_process(name: str) -> None:
+    """Signed zeros and subnormals: valid input, a consistent log, no exception."""
+    solution = solve(read_log_file(REPRO / name))
+    assert not solution.refuted, solution.messages
+    assert len(solution.hypotheses) == 1
+
+
+def test_signed_zeros_keep_the_truth() -> None:
+    """Pose 0 = pose 1 = (0, 0, 0), pose 2 = (1, 0, 0), landmark A = (2, 0), exactly."""
+    h = solve(read_log_file(REPRO / "signed-zero-crash.jsonl")).hypotheses[0]
+    zero, one = MP.mpf(0), MP.mpf(1)
+    truth = Truth(
+        poses={0: (zero, zero, zero), 1: (zero, zero, zero), 2: (one, zero, zero)},
+        landmarks={"A": (2 * one, zero)},
+        classes={"A": "c"},
+        assignment=["A"],
+    )
+    assert truth_misses(h, truth, {"A"}) == []
