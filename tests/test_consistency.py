@@ -6,13 +6,12 @@ row it builds, and its bounds from the LP never exclude the truth.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
+from _exact import MP, TWO_PI, mpf
 from cuikslam.graph import KinematicGraph
 from cuikslam.graph.encoding import OBSERVATION, ODOMETRY
 from cuikslam.narrowing import propagate
@@ -21,6 +20,8 @@ from cuikslam.narrowing.relaxation import relax, tighten
 from cuikslam.results.solution import check_truth
 from cuikslam.simulate import simulate_paper, simulate_random_world
 from cuikslam.solver import solve
+from worlds import Truth, World
+from worlds import worlds as exact_worlds
 
 worlds = st.fixed_dictionaries(
     {
@@ -57,53 +58,100 @@ def test_every_level_keeps_the_truth(level: str, spec: dict) -> None:
     assert report.ok, report.misses[:5]
 
 
-def _true_values(graph: KinematicGraph, log, truth) -> np.ndarray:
-    """The exact value of every graph variable (measurements recomputed from the truth)."""
-    values = np.full(graph.n_variables, np.nan)
-    for pose, xyt in zip(truth.pose_ids, truth.poses_xyt, strict=True):
-        values[graph.pose_index(pose) : graph.pose_index(pose) + 3] = xyt
-    for lid, xy in zip(truth.landmark_ids, truth.landmarks_xy, strict=True):
+def _exact_values(graph: KinematicGraph, truth: Truth, lo: np.ndarray, hi: np.ndarray) -> list:
+    """The exact true value of every graph variable (1300-bit reals), each angle in the
+    2π copy that its box holds; the measurements recomputed from the exact world."""
+    values: list = [None] * graph.n_variables
+    for pose, (x, y, t) in truth.poses.items():
+        i = graph.pose_index(pose)
+        values[i : i + 3] = [x, y, t]
+    for lid, xy in truth.landmarks.items():
         if lid in graph.landmark_ids:
-            values[graph.landmark_index(lid) : graph.landmark_index(lid) + 2] = xy
-    table = graph.factor_table()
-    for row in table:
+            i = graph.landmark_index(lid)
+            values[i : i + 2] = list(xy)
+    for row in graph.factor_table():
+        if int(row[0]) not in (ODOMETRY, OBSERVATION):
+            continue
         xa, ya, ta, xb, yb, tb, ang, length = (int(v) for v in row[1:])
         dx, dy = values[xb] - values[xa], values[yb] - values[ya]
-        values[length] = math.hypot(dx, dy)
-        direction = math.atan2(dy, dx)
-        if tb >= 0:  # odometry: the turn, and the heading equals the direction of travel
+        values[length] = _snap(MP.hypot(dx, dy))
+        if tb >= 0:  # odometry: the turn (the heading is the direction of travel)
             values[ang] = values[tb] - values[ta]
         else:
-            values[ang] = direction - values[ta]
+            values[ang] = MP.atan2(dy, dx) - values[ta]
+    angles = {int(v) for row in graph.factor_table() for v in (row[3], row[6], row[7])}
+    for v in angles - {-1}:
+        if values[v] is not None and hi[v] - lo[v] < 7.0:  # its copy in the box, if any
+            values[v] += TWO_PI * MP.ceil((mpf(lo[v]) - values[v]) / TWO_PI)
     return values
 
 
+def _snap(v):
+    """``v`` recomputed from inexact poses: the float it is within 2^-1200 of, if any.
+
+    The generator drives exact float distances, which ``hypot`` of the 1300-bit poses
+    gives back only to 2^-1290; an irrational true value is never that close to a float.
+    """
+    f = mpf(float(v))
+    return f if abs(v - f) <= abs(v) * MP.mpf(2) ** -1200 else v
+
+
+def _inside(lo: np.ndarray, hi: np.ndarray, values: list) -> list[int]:
+    """The variables whose exact value lies outside [lo, hi] (unknown ones are skipped)."""
+    return [v for v, x in enumerate(values) if x is not None and not mpf(lo[v]) <= x <= mpf(hi[v])]
+
+
+def _exact_rows(relaxation, values: list) -> tuple[list, list]:
+    """The lifted point (exact cos/sin of the angle sums) and ``A @ point``, exactly."""
+    point = list(values)
+    for (first, second), is_cos in zip(relaxation.aux_angles, relaxation.aux_is_cos, strict=True):
+        phi = point[first] + (point[second] if second >= 0 else 0)
+        point.append(MP.cos(phi) if is_cos else MP.sin(phi))
+    matrix = relaxation.matrix.tocsr()
+    rows = []
+    for i in range(matrix.shape[0]):
+        cols = matrix.indices[matrix.indptr[i] : matrix.indptr[i + 1]]
+        vals = matrix.data[matrix.indptr[i] : matrix.indptr[i + 1]]
+        rows.append(MP.fsum(mpf(a) * point[j] for a, j in zip(vals, cols, strict=True)))
+    return point, rows
+
+
+def _assert_rows_hold(relaxation, values: list) -> None:
+    """Every row and column bound holds at the exact point: no slack."""
+    point, rows = _exact_rows(relaxation, values)
+    for i, r in enumerate(rows):
+        assert mpf(relaxation.row_lo[i]) <= r <= mpf(relaxation.row_hi[i]), (
+            i,
+            relaxation.row_lo[i],
+            MP.nstr(r, 25),
+            relaxation.row_hi[i],
+        )
+    for j, x in enumerate(point):
+        if x is not None:
+            assert mpf(relaxation.col_lo[j]) <= x <= mpf(relaxation.col_hi[j]), j
+
+
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(spec=worlds)
-def test_relaxation_rows_hold_at_the_truth(spec: dict) -> None:
-    spec = {**spec, "range_only": 0.0, "bearing_only": 0.0}
-    log, truth = _world(spec)
+@given(world=exact_worlds(poses=(3, 12), landmarks=(1, 5), sensors=("none",)))
+def test_relaxation_rows_hold_at_the_truth(world: World) -> None:
+    """The exact truth satisfies every row of the relaxation, and its LP bounds keep it.
+
+    The world is exact (:mod:`worlds`): the measured intervals hold the true values, which
+    satisfy the relations exactly, so no slack is needed anywhere.
+    """
+    log = world.log("all")
     graph = KinematicGraph.from_log(log)
     result = propagate(graph)
-    values = _true_values(graph, log, truth)
-    # put the true angles in the same 2 pi copy as the boxes
+    assert not result.is_empty
     lo, hi = result.lo, result.hi
-    for v in range(len(values)):
-        if not (lo[v] <= values[v] <= hi[v]):
-            k = math.ceil((lo[v] - values[v]) / (2 * math.pi))
-            values[v] += 2 * math.pi * k
-    inside = (lo <= values) & (values <= hi)
-    if not inside.all():
-        return  # a non-angle variable, or an angle whose copy is ambiguous: skip this world
+    values = _exact_values(graph, world.truth, lo, hi)
+    assert _inside(lo, hi, values) == []
     relaxation = relax(graph.factor_table(), lo, hi)
-    rows = relaxation.matrix @ relaxation.lift(values)
-    slack = 1e-9 * (1 + np.abs(rows))
-    assert np.all(relaxation.row_lo - slack <= rows)
-    assert np.all(rows <= relaxation.row_hi + slack)
+    _assert_rows_hold(relaxation, values)
     targets = np.arange(graph.n_variables)
     new_lo, new_hi, feasible = tighten(graph.factor_table(), lo, hi, targets)
     assert feasible
-    assert np.all(new_lo <= values + 1e-9) and np.all(values - 1e-9 <= new_hi)
+    assert _inside(new_lo, new_hi, values) == []
 
 
 @pytest.mark.parametrize("seed", range(3))
@@ -113,7 +161,7 @@ def test_lp_is_much_tighter_than_hull_on_the_paper(seed: int) -> None:
     lp = solve(log, consistency="lp", certify_limit=0).best
     w_hull = hull.poses[..., 1] - hull.poses[..., 0]
     w_lp = lp.poses[..., 1] - lp.poses[..., 0]
-    assert np.all(w_lp <= w_hull + 1e-9)
+    assert np.all(w_lp <= w_hull)  # lp only narrows the hull fixpoint
     assert w_lp[:, :2].max() < 0.5 * w_hull[:, :2].max()
     assert check_truth(lp, truth.pose_ids, truth.poses_xyt).ok
 
@@ -154,19 +202,14 @@ def test_every_relaxation_row_holds_at_every_point_of_the_box(
     values = np.zeros(n)
     for var, u in zip([*angles, row[0, 8]], where, strict=False):
         values[var] = lo[var] + u * (hi[var] - lo[var])
-    phi = values[angles].sum()
-    ell = values[row[0, 8]]
-    values[3], values[4] = values[0] + ell * math.cos(phi), values[1] + ell * math.sin(phi)
-    if not ((lo <= values) & (values <= hi)).all():
-        return
+    phi = MP.fsum(mpf(v) for v in values[angles])
+    ell = mpf(values[row[0, 8]])
+    exact = [mpf(v) for v in values]
+    exact[3], exact[4] = exact[0] + ell * MP.cos(phi), exact[1] + ell * MP.sin(phi)
+    assume(_inside(lo, hi, exact) == [])
     relaxation = relax(row, lo, hi)
-    point = relaxation.lift(values)
     assert relaxation.matrix.shape[1] == n + 2
-    rows = relaxation.matrix @ point
-    slack = 1e-9 * (1.0 + abs(relaxation.matrix) @ np.abs(point))
-    assert np.all(relaxation.row_lo - slack <= rows)
-    assert np.all(rows <= relaxation.row_hi + slack)
-    assert np.all(relaxation.col_lo <= point) and np.all(point <= relaxation.col_hi)
+    _assert_rows_hold(relaxation, exact)
 
 
 def test_lp_reports_progress_window_by_window() -> None:

@@ -14,18 +14,24 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+import mpmath
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+# hypothesis and mpmath first: importing codac switches the process to rounding upward,
+# and hypothesis checks its float constants when imported (run alone, this file failed)
+from _exact import MP, angle_inside, mpf
+from _exact import TWO_PI as TWO_PI_MP
+from cuikslam._fpu import ensure_round_to_nearest
+from cuikslam.graph.kinematic_graph import KinematicGraph
+from cuikslam.narrowing.propagation import Status, propagate
 
 pytest.importorskip(
     "codac", reason="codac (pip install codac) is needed for the cross-check baseline"
 )
-
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
-
-from cuikslam.graph.kinematic_graph import KinematicGraph
-from cuikslam.narrowing.propagation import Status, propagate
+ensure_round_to_nearest()
 
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
@@ -37,22 +43,32 @@ TWO_PI = 2.0 * math.pi
 REL_SLACK = 0.01
 """cuikslam may be this fraction wider than codac (both stop at rtol, not at the exact hull)."""
 ABS_SLACK = 1e-9
-TRUTH_SLACK = 1e-9
-"""The float truth satisfies the relations up to rounding."""
 
 
 @dataclass
 class World:
     graph: KinematicGraph
-    poses: np.ndarray
-    """Truth (n_poses, 3): x, y and an unwrapped heading consistent with the turns."""
-    landmarks: np.ndarray
-    """Truth (n_observed_landmarks, 2), in the graph's landmark order."""
+    poses: list[tuple[mpmath.mpf, mpmath.mpf, mpmath.mpf]]
+    """Exact truth (1300 bits): x, y and an unwrapped heading, the sum of the turns."""
+    landmarks: list[tuple[mpmath.mpf, mpmath.mpf]]
+    """Exact truth, in the graph's landmark order."""
 
 
-def _noisy(rng: np.random.Generator, value: float, bound: float) -> tuple[float, float]:
-    measured = value + rng.uniform(-bound, bound)
-    return measured - bound, measured + bound
+def _down(v: mpmath.mpf) -> float:
+    f = float(v)
+    return float(np.nextafter(f, -math.inf)) if mpf(f) > v else f
+
+
+def _up(v: mpmath.mpf) -> float:
+    f = float(v)
+    return float(np.nextafter(f, math.inf)) if mpf(f) < v else f
+
+
+def _noisy(rng: np.random.Generator, value: mpmath.mpf, bound: float) -> tuple[float, float]:
+    """A reading of the exact ``value`` off by at most ``bound``, ± bound, rounded outward:
+    the interval holds ``value`` exactly."""
+    measured = value + mpf(rng.uniform(-bound, bound))
+    return _down(measured - mpf(bound)), _up(measured + mpf(bound))
 
 
 def random_world(seed: int, n_poses: int, n_landmarks: int, corrupt: bool = False) -> World:
@@ -63,41 +79,44 @@ def random_world(seed: int, n_poses: int, n_landmarks: int, corrupt: bool = Fals
     rng = np.random.default_rng(seed)
     turn_b, dist_b = rng.uniform(0.002, 0.05), rng.uniform(0.005, 0.1)
     range_b, bearing_b = rng.uniform(0.005, 0.1), rng.uniform(0.002, 0.05)
-    poses = np.zeros((n_poses, 3))
-    poses[0] = (rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-math.pi, math.pi))
+    x0, y0, t0 = rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-math.pi, math.pi)
+    poses = [(mpf(x0), mpf(y0), mpf(t0))]
     turns = rng.uniform(-0.6, 0.6, n_poses)
     steps = rng.uniform(0.5, 2.0, n_poses)
-    for i in range(1, n_poses):
-        theta = poses[i - 1, 2] + turns[i]
-        poses[i] = (
-            poses[i - 1, 0] + steps[i] * math.cos(theta),
-            poses[i - 1, 1] + steps[i] * math.sin(theta),
-            theta,
-        )
-    anchors = poses[rng.integers(0, n_poses, n_landmarks), :2]
-    landmarks = anchors + rng.uniform(-5.0, 5.0, (n_landmarks, 2))
+    for i in range(1, n_poses):  # exactly: the truth satisfies every relation, no slack
+        x, y, theta = poses[i - 1]
+        theta = theta + mpf(turns[i])
+        step = mpf(steps[i])
+        poses.append((x + step * MP.cos(theta), y + step * MP.sin(theta), theta))
+    anchors = rng.integers(0, n_poses, n_landmarks)
+    landmarks = [
+        (float(poses[a][0]) + rng.uniform(-5.0, 5.0), float(poses[a][1]) + rng.uniform(-5.0, 5.0))
+        for a in anchors
+    ]
+    exact_landmarks = [(mpf(x), mpf(y)) for x, y in landmarks]
 
     graph = KinematicGraph()
-    x0, y0, t0 = (float(v) for v in poses[0])
     if rng.random() < 0.5:
         graph.add_pose_prior(0, (x0, x0), (y0, y0), (t0, t0))
     else:
-        graph.add_pose_prior(0, _noisy(rng, x0, 0.1), _noisy(rng, y0, 0.1), _noisy(rng, t0, 0.05))
+        x, y, t = poses[0]
+        graph.add_pose_prior(0, _noisy(rng, x, 0.1), _noisy(rng, y, 0.1), _noisy(rng, t, 0.05))
     observations: list[tuple[int, int]] = []
     for i in range(n_poses):
         if i > 0:
-            turn = float(poses[i, 2] - poses[i - 1, 2])
-            distance = float(math.hypot(*(poses[i, :2] - poses[i - 1, :2])))
+            turn, distance = mpf(turns[i]), mpf(steps[i])
             graph.add_odometry(i - 1, i, _noisy(rng, turn, turn_b), _noisy(rng, distance, dist_b))
         for m in range(n_landmarks):
-            dx, dy = landmarks[m] - poses[i, :2]
-            if math.hypot(dx, dy) <= 8.0:
+            x, y, _ = poses[i]
+            if MP.hypot(exact_landmarks[m][0] - x, exact_landmarks[m][1] - y) <= 8.0:
                 observations.append((i, m))
     bad = int(rng.integers(len(observations))) if corrupt and observations else -1
     for k, (i, m) in enumerate(observations):
-        dx, dy = landmarks[m] - poses[i, :2]
-        rho = math.hypot(dx, dy)
-        bearing = math.remainder(math.atan2(dy, dx) - poses[i, 2], TWO_PI)
+        x, y, theta = poses[i]
+        dx, dy = exact_landmarks[m][0] - x, exact_landmarks[m][1] - y
+        rho = MP.hypot(dx, dy)
+        bearing = MP.atan2(dy, dx) - theta
+        bearing -= TWO_PI_MP * MP.nint(bearing / TWO_PI_MP)
         rng_lo, rng_hi = _noisy(rng, rho, range_b)
         if k == bad:
             shift = rng.uniform(2.0, 4.0)
@@ -107,32 +126,22 @@ def random_world(seed: int, n_poses: int, n_landmarks: int, corrupt: bool = Fals
             i, f"L{m}", range=(rng_lo, rng_hi), bearing=_noisy(rng, bearing, bearing_b)
         )
     observed = [int(name[1:]) for name in graph.landmark_ids]
-    return World(graph, poses, landmarks[observed])
-
-
-def _angle_inside(lo: np.ndarray, hi: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Whether angle + 2 pi k lies in [lo, hi] for some k (cuikslam's headings are periodic)."""
-    with np.errstate(invalid="ignore"):
-        shifted = lo + np.mod(angle - lo, TWO_PI)
-        return (
-            (hi - lo >= TWO_PI)
-            | (shifted <= hi + TRUTH_SLACK)
-            | (shifted - TWO_PI >= lo - TRUTH_SLACK)
-        )
+    return World(graph, poses, [exact_landmarks[m] for m in observed])
 
 
 def _assert_truth_inside(world: World, lo: np.ndarray, hi: np.ndarray, who: str) -> None:
+    """Every box holds the exact truth (headings modulo 2π): no slack."""
     pb = world.graph.pose_boxes(lo, hi)
     lb = world.graph.landmark_boxes(lo, hi)
-    xy = world.poses[:, :2]
-    assert np.all(pb[:, :2, 0] <= xy + TRUTH_SLACK), f"{who}: a pose x/y box misses the truth"
-    assert np.all(xy - TRUTH_SLACK <= pb[:, :2, 1]), f"{who}: a pose x/y box misses the truth"
-    heading_ok = _angle_inside(pb[:, 2, 0], pb[:, 2, 1], world.poses[:, 2])
-    assert np.all(heading_ok), (
-        f"{who}: heading boxes miss the truth at {np.flatnonzero(~heading_ok)}"
-    )
-    assert np.all(lb[..., 0] <= world.landmarks + TRUTH_SLACK), f"{who}: a landmark box misses"
-    assert np.all(world.landmarks - TRUTH_SLACK <= lb[..., 1]), f"{who}: a landmark box misses"
+    for i, (x, y, theta) in enumerate(world.poses):
+        for name, v, (low, high) in (("x", x, pb[i, 0]), ("y", y, pb[i, 1])):
+            assert mpf(low) <= v <= mpf(high), f"{who}: pose {i} {name} misses the truth"
+        assert angle_inside(float(pb[i, 2, 0]), float(pb[i, 2, 1]), theta), (
+            f"{who}: pose {i} heading misses the truth"
+        )
+    for j, xy in enumerate(world.landmarks):
+        for name, v, (low, high) in zip("xy", xy, lb[j], strict=True):
+            assert mpf(low) <= v <= mpf(high), f"{who}: landmark {j} {name} misses the truth"
 
 
 def _widths(world: World, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
