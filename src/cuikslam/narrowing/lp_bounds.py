@@ -47,6 +47,10 @@ LP_ITERATIONS_PER_SIZE = 10
 """Simplex iterations one LP may take, per row and column (typical: about one third)."""
 LP_MIN_ITERATIONS = 1000
 
+_SOLVER = getattr(getattr(highspy, "_core", None), "_Highs", highspy.Highs)
+"""The HiGHS class: the bare binding when there is one (the ``highspy.Highs`` wrapper
+installs a logging callback that prints a banner on stdout the first time, even when
+the output is then switched off), else the wrapper."""
 _OPTIMAL = highspy.HighsModelStatus.kOptimal
 _LIMITS = (
     highspy.HighsModelStatus.kIterationLimit,
@@ -216,7 +220,7 @@ def _bounds(
     """Certified minima (sense 1) or maxima (sense -1) of the ``columns``, and counts."""
     ensure_round_to_nearest()  # the rounding mode is per thread
     stats = LpStatistics()
-    solver = highspy.Highs()
+    solver = _SOLVER()
     solver.setOptionValue("output_flag", False)
     solver.setOptionValue("presolve", "off")
     size = csc.shape[0] + csc.shape[1]
