@@ -25,7 +25,7 @@ def test_a_product_of_ambiguities_is_found_and_a_dependence_is_kept_together() -
         _hypothesis(["A", one, "C", three])
         for one, three in itertools.product(["A", "B"], ["C", "D"])
     ]
-    s = summarize(product)
+    s = summarize([h.assignment for h in product])
     assert s.certain == [True, False, True, False]
     assert [f.observations for f in s.factors] == [[1], [3]]
     assert s.combinations == 4
@@ -35,14 +35,22 @@ def test_a_product_of_ambiguities_is_found_and_a_dependence_is_kept_together() -
         for bits in itertools.product([0, 1], repeat=3)
         if sum(bits) % 2 == 0
     ]
-    s = summarize(xor)
+    s = summarize([h.assignment for h in xor])
     assert [f.observations for f in s.factors] == [[1, 2, 3]]
     assert s.combinations == len(xor) == 4
 
 
-def test_pose_hull_spans_every_survivor() -> None:
-    s = summarize([_hypothesis(["A"], 0.0, 1.0), _hypothesis(["B"], -2.0, 0.5)])
-    assert s.poses[0, 0].tolist() == [-2.0, 1.0]
+def test_the_search_summarises_every_survivor_not_only_the_reported() -> None:
+    log, _ = simulate_paper(seed=0, unknown=True)
+    every = solve_unknown(log, consistency="hull", local_frame=False)
+    few = solve_unknown(log, consistency="hull", local_frame=False, max_hypotheses=2)
+    assert few.correspondence["follows"] == every.correspondence["follows"]
+    assert few.correspondence["factors"] == every.correspondence["factors"]
+    assert few.correspondence["survivors"] == len(every.hypotheses) > 2
+    lo = np.min([h.poses[..., 0] for h in every.hypotheses], axis=0)
+    hi = np.max([h.poses[..., 1] for h in every.hypotheses], axis=0)
+    assert np.array_equal(np.array(few.correspondence["pose_hull"]), np.stack([lo, hi], -1))
+    assert any(f"{len(every.hypotheses)} survivors)" in m for m in few.messages)
 
 
 def test_the_paper_survivors_are_a_product_of_independent_ambiguities() -> None:
@@ -51,7 +59,7 @@ def test_the_paper_survivors_are_a_product_of_independent_ambiguities() -> None:
     c = solution.correspondence
     assert c is not None and c["survivors"] == c["reported"] == len(solution.hypotheses)
     assert math.prod(len(f["choices"]) for f in c["factors"]) == len(solution.hypotheses)
-    true_follows = summarize([_hypothesis(truth.assignment)]).follows
+    true_follows = summarize([truth.assignment]).follows
     for i, options in enumerate(c["follows"]):
         assert true_follows[i][0] in options
         assert c["certain"][i] == (len(options) == 1)

@@ -207,8 +207,8 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
         "--max-hypotheses",
         type=_positive_int,
         default=10_000,
-        help="live correspondence hypotheses kept at most; beyond it the best-ranked are kept "
-        "and the result is marked incomplete (default %(default)s)",
+        help="surviving correspondence hypotheses reported in detail (the best-ranked); the "
+        "search explores and counts all of them (default %(default)s)",
     )
     p.add_argument(
         "--strengthen-limit",

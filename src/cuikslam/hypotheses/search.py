@@ -64,6 +64,8 @@ DEFAULT_STRENGTHEN_DURING = 0
 """Decisions (the first ones) whose children get ``lp`` during the search when ambiguous."""
 MAINTAIN_EVERY = 1024
 """Node expansions between two looks at the shared graph's housekeeping."""
+MAX_TALLIED = 100_000
+"""Survivors whose assignments the correspondence summary holds at most."""
 SHOWN_PREFIXES = 5
 """Unexplored subtrees named in the message of a search stopped by its budget."""
 
@@ -406,6 +408,40 @@ def explore(
     return _Outcome(_best(explorer, survivors, keep), stack if reason else [], reason)
 
 
+class _Tally:
+    """What every survivor contributes to the summary, reported in detail or not."""
+
+    def __init__(self, explorer: Explorer, on_survivor: Callable[[list[int]], None] | None):
+        self.explorer = explorer
+        self.on_survivor = on_survivor
+        self.assignments: list[list[str]] = []
+        pose_ids = sorted(explorer.problem.pose_x)
+        xs = np.array([explorer.problem.pose_x[q] for q in pose_ids], dtype=np.int64)
+        self._cols = (xs[:, None] + np.arange(3)).ravel()
+        self._lo = np.full(len(self._cols), np.inf)
+        self._hi = np.full(len(self._cols), -np.inf)
+
+    def add(self, node: Node) -> None:
+        decisions = node.decisions()
+        if self.on_survivor is not None:
+            self.on_survivor(decisions)
+        p = self.explorer.problem
+        if len(self.assignments) < MAX_TALLIED:
+            assignment = [""] * p.n_observations
+            for position, n in p.named_assignment.items():
+                assignment[position] = p.named[n]
+            for d, n in zip(p.decisions, decisions, strict=True):
+                assignment[d.position] = p.named[n] if n < len(p.named) else f"#{n}"
+            self.assignments.append(assignment)
+        lo, hi = self.explorer.graph.values(node.overlay, self._cols)
+        np.minimum(self._lo, lo, out=self._lo)
+        np.maximum(self._hi, hi, out=self._hi)
+
+    def poses(self) -> np.ndarray:
+        """Hull over the survivors of every pose box, shape (n_poses, 3, 2)."""
+        return np.stack([self._lo, self._hi], axis=-1).reshape(-1, 3, 2)
+
+
 def _maintain(
     graph: SharedGraph, stack: list[Node], survivors: list[Node]
 ) -> tuple[list[Node], list[Node]]:
@@ -552,6 +588,7 @@ def solve_unknown(
     explorer.deadline = deadline
     messages: list[str] = []
     root = explorer.root()
+    tally = _Tally(explorer, on_survivor)
     outcome = _Outcome([], [], None)
     if root is not None:
         outcome = explore(
@@ -559,7 +596,7 @@ def solve_unknown(
             root,
             Budget(deadline, max_nodes),
             max(1, max_hypotheses),
-            None if on_survivor is None else (lambda n: on_survivor(n.decisions())),
+            tally.add,
             progress,
         )
     stats = explorer.stats
@@ -585,8 +622,8 @@ def solve_unknown(
         )
     correspondence = None
     if hypotheses:
-        summary = summarize(hypotheses, set(problem.named))
-        messages.append(describe(summary, len(hypotheses)))
+        summary = summarize(tally.assignments, set(problem.named), tally.poses())
+        messages.append(describe(summary, stats.survivors))
         correspondence = {
             **summary_to_json(summary),
             "reported": len(hypotheses),

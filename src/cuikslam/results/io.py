@@ -11,12 +11,14 @@ JSON layout (stable keys)::
      "statistics": {...}, "timings": {...}, "log": "...", "consistency": "...",
      "correspondence": {"follows": [["#0", "new"], ...], "certain": [true, ...],
                         "factors": [{"observations": [3, 7], "choices": [[...], ...]}],
+                        "pose_hull": [[[lo, hi], [lo, hi], [lo, hi]], ...],
                         "reported": 12, "survivors": 12}}
 
 ``correspondence`` (unknown correspondence only) says, for each observation, what it can
 follow across the reported survivors: ``"#j"`` (observation j saw the same landmark
 last), a named landmark's id, or ``"new"``; and how the ambiguous observations split into
-independent groups whose choices combine freely.
+independent groups whose choices combine freely, over every survivor (reported or not);
+``pose_hull`` holds each pose's box whatever the correspondence.
 
 Bounds are written with full precision (``repr`` of the floats), so reading a result
 back gives the same boxes. Files are written atomically.

@@ -15,8 +15,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cuikslam.results.solution import Hypothesis
-
 __all__ = ["Ambiguity", "CorrespondenceSummary", "describe", "summarize", "summary_to_json"]
 
 NEW = "new"
@@ -45,8 +43,8 @@ class CorrespondenceSummary:
     factors: list[Ambiguity]
     """Independent groups of ambiguous observations: the survivors are exactly every
     combination of one choice per group."""
-    poses: np.ndarray
-    """Hull over survivors of each pose box, shape (n_poses, 3, 2)."""
+    poses: np.ndarray | None = None
+    """Hull over survivors of each pose box, shape (n_poses, 3, 2), when known."""
 
     @property
     def combinations(self) -> int:
@@ -66,15 +64,19 @@ def _follows(assignment: list[str], named: set[str]) -> list[str]:
     return out
 
 
-def summarize(hypotheses: list[Hypothesis], named: set[str] | None = None) -> CorrespondenceSummary:
-    """Summarise ``hypotheses`` (all with the same observations and poses).
+def summarize(
+    assignments: list[list[str]], named: set[str] | None = None, poses: np.ndarray | None = None
+) -> CorrespondenceSummary:
+    """Summarise the survivors given by their assignments (landmark id per observation).
 
     Parameters
     ----------
-    hypotheses : list of Hypothesis
-        The survivors of a solve (at least one).
+    assignments : list of list of str
+        Every survivor's assignment (at least one), all over the same observations.
     named : set of str, optional
         Landmark ids given in the log (they keep their names across hypotheses).
+    poses : numpy.ndarray, optional
+        The hull over survivors of each pose box, passed through.
 
     Returns
     -------
@@ -82,20 +84,15 @@ def summarize(hypotheses: list[Hypothesis], named: set[str] | None = None) -> Co
 
     Examples
     --------
-    >>> import numpy as np
-    >>> from cuikslam.results.solution import Hypothesis
-    >>> box = np.zeros((1, 3, 2))
-    >>> def h(a):
-    ...     return Hypothesis(a, [0], box, sorted(set(a)), ["c"] * len(set(a)), np.zeros((0, 2, 2)))
-    >>> s = summarize([h(["A", "A", "B", "C"]), h(["A", "B", "B", "C"]),
-    ...                h(["A", "A", "B", "B"]), h(["A", "B", "B", "B"])])
+    >>> s = summarize([["A", "A", "B", "C"], ["A", "B", "B", "C"],
+    ...                ["A", "A", "B", "B"], ["A", "B", "B", "B"]])
     >>> s.certain
     [True, False, False, False]
     >>> [f.observations for f in s.factors], s.combinations
     ([[1, 2], [3]], 4)
     """
     named = named or set()
-    table = [_follows(h.assignment, named) for h in hypotheses]
+    table = [_follows(a, named) for a in assignments]
     n_obs = len(table[0]) if table else 0
     follows = [sorted({row[i] for row in table}) for i in range(n_obs)]
     certain = [len(f) == 1 for f in follows]
@@ -105,13 +102,6 @@ def summarize(hypotheses: list[Hypothesis], named: set[str] | None = None) -> Co
     if math.prod(len(_choices(table, g)) for g in groups) != distinct:
         groups = [ambiguous] if ambiguous else []  # a dependence beyond pairs: one group
     factors = [Ambiguity(g, [list(c) for c in _choices(table, g)]) for g in groups]
-    poses = np.stack(
-        [
-            np.min([h.poses[..., 0] for h in hypotheses], axis=0),
-            np.max([h.poses[..., 1] for h in hypotheses], axis=0),
-        ],
-        axis=-1,
-    )
     return CorrespondenceSummary(follows, certain, factors, poses)
 
 
@@ -152,6 +142,7 @@ def summary_to_json(summary: CorrespondenceSummary) -> dict:
         "factors": [
             {"observations": f.observations, "choices": f.choices} for f in summary.factors
         ],
+        **({} if summary.poses is None else {"pose_hull": summary.poses.tolist()}),
     }
 
 
@@ -166,5 +157,5 @@ def describe(summary: CorrespondenceSummary, survivors: int) -> str:
         f"{certain} of {n} observations are associated for certain; the other "
         f"{n - certain} form {len(summary.factors)} independent ambiguit"
         f"{'y' if len(summary.factors) == 1 else 'ies'} ({sizes} = {summary.combinations} "
-        f"combinations of the {survivors} reported survivors)"
+        f"combinations of the {survivors} survivors)"
     )
