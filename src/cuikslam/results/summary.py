@@ -153,9 +153,10 @@ def describe(summary: CorrespondenceSummary, survivors: int) -> str:
     if not summary.factors:
         return f"all {n} observations are associated for certain"
     sizes = " x ".join(str(len(f.choices)) for f in summary.factors)
+    groups = len(summary.factors)
     return (
-        f"{certain} of {n} observations are associated for certain; the other "
-        f"{n - certain} form {len(summary.factors)} independent ambiguit"
-        f"{'y' if len(summary.factors) == 1 else 'ies'} ({sizes} = {summary.combinations} "
-        f"combinations of the {survivors} survivors)"
+        f"{certain} of {n} observations are associated for certain; {n - certain} "
+        f"{'is' if n - certain == 1 else 'are'} ambiguous, in {groups} independent "
+        f"group{'' if groups == 1 else 's'} ({sizes} = {summary.combinations} combinations: "
+        f"the {survivors} survivors)"
     )
