@@ -20,6 +20,13 @@ last), a named landmark's id, or ``"new"``; and how the ambiguous observations s
 independent groups whose choices combine freely, over every survivor (reported or not);
 ``pose_hull`` holds each pose's box whatever the correspondence.
 
+``consistency`` (of the solve and of each hypothesis) is the level the boxes reach:
+``hull``, ``lp`` or ``lp-split``, or ``"lp (budget)"`` / ``"lp-split (budget)"`` when the
+time budget cut that level short (the boxes then reach the level below it, narrowed
+further by the rounds that ran; see :mod:`cuikslam.narrowing.consistency`). Budgets that
+ran out also show in ``statistics`` (``lp_budget_exhausted``,
+``witness_budget_exhausted``) and ``messages``; ``timings`` holds ``time_budget_s``.
+
 Bounds are written with full precision (``repr`` of the floats), so reading a result
 back gives the same boxes. Files are written atomically.
 """
