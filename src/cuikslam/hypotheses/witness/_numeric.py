@@ -9,6 +9,8 @@ and a midpoint or a random point of an interval lies inside it.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 BIG = 1e100
@@ -61,3 +63,15 @@ def finite(values: np.ndarray, nan: float = BIG) -> np.ndarray:
     """``values`` with NaN replaced by ``nan`` and every entry clipped to ``[-BIG, BIG]``."""
     out = np.nan_to_num(np.asarray(values, dtype=float), nan=nan, posinf=BIG, neginf=-BIG)
     return np.clip(out, -BIG, BIG)
+
+
+def cos_sin(angle: float) -> tuple[float, float]:
+    """``(cos, sin)`` of a float angle; NaN for an infinite or NaN one (no exception)."""
+    if not math.isfinite(angle):
+        return math.nan, math.nan
+    return math.cos(angle), math.sin(angle)
+
+
+def wrap_near(value: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """The representative of ``value`` (mod 2 pi) nearest ``centre``."""
+    return centre + np.remainder(value - centre + np.pi, 2 * np.pi) - np.pi

@@ -25,22 +25,30 @@ is set, the robot sees only the visible landmarks within ``nearest_margin`` of t
 visible one. Observed landmarks must be seen, unobserved ones must not.
 
 The model evaluates all of this in floating point, with Jacobians, for the optimisers of
-:mod:`.find` and :mod:`.hull`, and gives them starting points; :mod:`.verify` re-does the
-forward kinematics in interval arithmetic from the same parameters.
+:mod:`.find` and :mod:`.hull`, and gives them starting points (:mod:`._starts`);
+:mod:`.verify` re-does the forward kinematics in interval arithmetic from the same
+parameters.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
-from cuikslam.budget import OutOfTime, expired
-from cuikslam.hypotheses.witness._numeric import BIG, finite, half_width, midpoint, uniform
+from cuikslam.hypotheses.witness._numeric import (
+    BIG,
+    cos_sin,
+    finite,
+    half_width,
+    midpoint,
+    wrap_near,
+)
+from cuikslam.hypotheses.witness._starts import LandmarkBoxes as LandmarkBoxes
+from cuikslam.hypotheses.witness._starts import PoseBoxes as PoseBoxes
+from cuikslam.hypotheses.witness._starts import Starts
 from cuikslam.log.records import LandmarkPrior, Log, Observation, Odometry, PosePrior
 
 AIM_FRACTION = 0.1
@@ -49,9 +57,6 @@ MIN_MARGIN = 1e-9
 """...but at least this much (unless the interval is narrower)."""
 SENSOR_MARGIN = 1e-6
 """Aimed clearance (m, rad) from the sensor's visibility thresholds."""
-
-PoseBoxes = Mapping[int, np.ndarray] | np.ndarray | None
-LandmarkBoxes = Mapping[str, np.ndarray] | np.ndarray | None
 
 
 def aim_margin(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -74,43 +79,10 @@ def _distance(dx: np.ndarray, dy: np.ndarray) -> tuple[np.ndarray, np.ndarray, n
     return r, r_safe, r2
 
 
-def _cos_sin(angle: float) -> tuple[float, float]:
-    """``(cos, sin)`` of a float angle; NaN for an infinite or NaN one (no exception)."""
-    if not math.isfinite(angle):
-        return math.nan, math.nan
-    return math.cos(angle), math.sin(angle)
-
-
-def _wrap_near(value: np.ndarray, centre: np.ndarray) -> np.ndarray:
-    """The representative of ``value`` (mod 2 pi) nearest ``centre``."""
-    return centre + np.remainder(value - centre + np.pi, 2 * np.pi) - np.pi
-
-
 def _pair(bounds: tuple[float, float] | None) -> tuple[float, float]:
     if bounds is None:
         return (math.nan, math.nan)
     return (float(bounds[0]), float(bounds[1]))
-
-
-def _by_id(
-    values: Mapping[Any, Any] | np.ndarray, index: dict, shape: tuple[int, ...]
-) -> np.ndarray:
-    """``values`` (a mapping by id, or an array in the model's order) as an array of
-    ``shape``, rows in the model's order: NaN rows for ids not given, unknown ids ignored."""
-    if isinstance(values, Mapping):
-        out = np.full(shape, np.nan)
-        for key, v in values.items():
-            if key in index:
-                out[index[key]] = np.asarray(v, dtype=float)[: shape[1]]
-        return out
-    return np.asarray(values, dtype=float).reshape(shape)
-
-
-def _centres(boxes: np.ndarray | None) -> np.ndarray | None:
-    """Centres of boxes (..., 2), NaN where a bound is missing or infinite."""
-    if boxes is None:
-        return None
-    return midpoint(boxes[..., 0], boxes[..., 1])
 
 
 @dataclass
@@ -145,7 +117,7 @@ class _Step:
     forward: bool
 
 
-class HypothesisModel:
+class HypothesisModel(Starts):
     """The parametrisation of a hypothesis and its checks (see the module docstring).
 
     Poses and landmarks are numbered in the order the kinematic graph uses (first
@@ -402,7 +374,7 @@ class HypothesisModel:
             d = p[st.distance]
             if st.forward:
                 th = t + p[st.turn]
-                c, s = _cos_sin(th)
+                c, s = cos_sin(th)
                 P[st.child] = (x + d * c, y + d * s, th)
                 if J is not None:
                     jt = J[st.parent, 2].copy()
@@ -413,7 +385,7 @@ class HypothesisModel:
                     J[st.child, 0, st.distance] += c
                     J[st.child, 1, st.distance] += s
             else:
-                c, s = _cos_sin(t)
+                c, s = cos_sin(t)
                 P[st.child] = (x - d * c, y - d * s, t - p[st.turn])
                 if J is not None:
                     jt = J[st.parent, 2]
@@ -459,7 +431,7 @@ class HypothesisModel:
         values.append(ddx * ct + ddy * st)
         v = np.concatenate(values)
         ang = self.check_angular
-        v[ang] = _wrap_near(v[ang], self.check_mid[ang])
+        v[ang] = wrap_near(v[ang], self.check_mid[ang])
         if not jacobian:
             return v, None
         assert JP is not None
@@ -578,194 +550,6 @@ class HypothesisModel:
         Junseen = Junseen * (unseen_res > 0)[..., None]
         J = np.where(obs[..., None], Jseen, Junseen)
         return res.ravel(), finite(J.reshape(n * m, self.n_params), nan=0.0)
-
-    # ------------------------------------------------------------------ starts
-    def params_from_world(
-        self,
-        poses_xyt: Mapping[int, np.ndarray] | np.ndarray,
-        landmarks_xy: Mapping[str, np.ndarray] | np.ndarray,
-        clip: bool = True,
-    ) -> np.ndarray:
-        """Parameters that reproduce a world as nearly as they can (turns and headings mod
-        2 pi near their intervals; with ``clip`` each parameter is clipped to its bounds).
-
-        The world need not be consistent: pose values drive the tree's parameters one step
-        at a time, so a box centre gives a sensible starting point.
-        """
-        P = self._pose_array(poses_xyt)
-        L = self._landmark_array(landmarks_xy)
-        p = np.zeros(self.n_params)
-        for a, k in self.anchors:
-            p[k : k + 3] = P[a]
-        for st in self.steps:
-            parent, child = P[st.parent], P[st.child]
-            if st.forward:
-                turn = child[2] - parent[2]
-                u = _cos_sin(child[2])
-                delta = child[:2] - parent[:2]
-            else:
-                turn = parent[2] - child[2]
-                u = _cos_sin(parent[2])
-                delta = parent[:2] - child[:2]
-            centre = midpoint(self.param_lo[st.turn], self.param_hi[st.turn], 0.0)
-            p[st.turn] = float(_wrap_near(np.array(turn), np.array(centre)))
-            p[st.distance] = float(delta[0] * u[0] + delta[1] * u[1])
-        p[self.landmark_param0 :] = L.ravel()
-        p = np.where(np.isfinite(p), p, 0.0)
-        if clip:
-            p = np.clip(p, self.param_lo, self.param_hi)
-        return p
-
-    def _pose_array(self, poses: Mapping[int, np.ndarray] | np.ndarray) -> np.ndarray:
-        return _by_id(poses, self._pose_index, (self.n_poses, 3))
-
-    def _landmark_array(self, landmarks: Mapping[str, np.ndarray] | np.ndarray) -> np.ndarray:
-        return _by_id(landmarks, self._landmark_index, (self.n_landmarks, 2))
-
-    def pose_boxes(self, boxes: PoseBoxes) -> np.ndarray | None:
-        """Pose boxes as an array (n, 3, 2) in the model's order (NaN where not given)."""
-        if boxes is None:
-            return None
-        return _by_id(boxes, self._pose_index, (self.n_poses, 3, 2))
-
-    def landmark_boxes(self, boxes: LandmarkBoxes) -> np.ndarray | None:
-        """Landmark boxes as an array (m, 2, 2) in the model's order (NaN where not given)."""
-        if boxes is None:
-            return None
-        return _by_id(boxes, self._landmark_index, (self.n_landmarks, 2, 2))
-
-    def initial_params(
-        self,
-        poses_box: PoseBoxes = None,
-        landmarks_box: LandmarkBoxes = None,
-        rng: np.random.Generator | None = None,
-        deadline: float | None = None,
-    ) -> np.ndarray:
-        """A starting point: interval midpoints (or random points of the intervals when
-        ``rng`` is given), refined by the boxes' centres where given; landmarks at their box
-        or prior centre, else where their first observation's midpoint puts them.
-
-        Raises :class:`~cuikslam.budget.OutOfTime` when ``deadline`` passes while fitting
-        landmarks (a few small least-squares fits each)."""
-        finite = np.isfinite(self.param_lo) & np.isfinite(self.param_hi)
-        lo = np.where(finite, self.param_lo, 0.0)
-        hi = np.where(finite, self.param_hi, 0.0)
-        p = midpoint(lo, hi, 0.0) if rng is None else uniform(rng, lo, hi)
-        pose_c = _centres(self.pose_boxes(poses_box))
-        if pose_c is not None and rng is None:
-            q = self.params_from_world(
-                np.where(np.isnan(pose_c), 0.0, pose_c), np.zeros((self.n_landmarks, 2)), clip=True
-            )
-            ok = self._params_known(pose_c)
-            p = np.where(ok & np.isfinite(q), q, p)
-        # anchors without a prior: the box centre or the origin
-        land = _centres(self.landmark_boxes(landmarks_box))
-        P, _ = self.poses(p)
-        L = np.full((self.n_landmarks, 2), np.nan)
-        for lo_, hi_, j, c in zip(*self._landmark_prior_rows(), strict=True):
-            if np.isnan(L[j, c]) and math.isfinite(lo_) and math.isfinite(hi_):
-                L[j, c] = midpoint(lo_, hi_)
-        if land is not None:
-            L = np.where(np.isnan(land), L, land)
-        for j in range(self.n_landmarks):
-            if np.any(np.isnan(L[j])):
-                if expired(deadline):
-                    raise OutOfTime
-                L[j] = self._fit_landmark(j, P, rng)
-        L = np.where(np.isnan(L), 0.0, L)
-        p[self.landmark_param0 :] = L.ravel()
-        return p
-
-    def _fit_landmark(
-        self, j: int, P: np.ndarray, rng: np.random.Generator | None = None
-    ) -> np.ndarray:
-        """Where the observations of landmark ``j`` put it, seen from the poses ``P``: the
-        best of small least-squares fits started from each observation's midpoint
-        projection (at a few guessed ranges when the range is unmeasured, a few guessed
-        bearings when the bearing is)."""
-        rows = []
-        for q in np.flatnonzero(self.obs_landmark == j):
-            i = int(self.obs_pose[q])
-            rr, bb = self._obs_mid(q, "range"), self._obs_mid(q, "bearing")
-            rows.append((i, rr, bb, self._obs_half(q, "range"), self._obs_half(q, "bearing")))
-        if not rows:
-            return np.zeros(2)
-        starts = []
-        for i, rr, bb, _, _ in rows:
-            ranges = [rr] if rr is not None else [1.0, 3.0, 10.0]
-            bearings = [bb] if bb is not None else [0.0, math.pi / 2, math.pi, -math.pi / 2]
-            if rng is not None and bb is None:
-                bearings = [b + rng.normal(0.0, 0.3) for b in bearings]
-            for r in ranges:
-                for b in bearings:
-                    a = P[i, 2] + b
-                    starts.append(finite(P[i, :2] + r * np.array(_cos_sin(a))))
-        if len(rows) == 1 and rows[0][1] is not None and rows[0][2] is not None:
-            return starts[0]
-        pose_i = np.array([r[0] for r in rows])
-        rng_mid = np.array([np.nan if r[1] is None else r[1] for r in rows])
-        brg_mid = np.array([np.nan if r[2] is None else r[2] for r in rows])
-        rng_w = np.array([1.0 if r[3] is None else max(r[3], 1e-3) for r in rows])
-        brg_w = np.array([1.0 if r[4] is None else max(r[4], 1e-3) for r in rows])
-        has_r, has_b = ~np.isnan(rng_mid), ~np.isnan(brg_mid)
-
-        @np.errstate(all="ignore")
-        def residuals(xy: np.ndarray) -> np.ndarray:
-            dx = xy[0] - P[pose_i, 0]
-            dy = xy[1] - P[pose_i, 1]
-            dist = np.hypot(dx, dy)
-            brg = np.arctan2(dy, dx) - P[pose_i, 2]
-            res_r = (dist - rng_mid)[has_r] / rng_w[has_r]
-            res_b = _wrap_near(brg, brg_mid)[has_b] - brg_mid[has_b]
-            return finite(np.concatenate([res_r, res_b / brg_w[has_b]]))
-
-        best, best_cost = starts[0], math.inf
-        for xy in starts[:16]:
-            try:
-                fit = least_squares(residuals, xy, method="trf", max_nfev=50)
-            except ValueError:
-                continue
-            if fit.cost < best_cost and np.all(np.isfinite(fit.x)):
-                best, best_cost = fit.x, fit.cost
-        return np.asarray(best, dtype=float)
-
-    def _obs_row(self, q: int, kind: str) -> int | None:
-        """The check row of observation ``q``'s ``"range"`` or ``"bearing"`` (None when it
-        is not measured)."""
-        sel = self.range_sel if kind == "range" else self.bearing_sel
-        pos = np.flatnonzero(sel == q)
-        if len(pos) == 0:
-            return None
-        return int(pos[0]) + (0 if kind == "range" else len(self.range_sel))
-
-    def _obs_half(self, q: int, kind: str) -> float | None:
-        row = self._obs_row(q, kind)
-        return None if row is None else float(half_width(self.check_lo[row], self.check_hi[row]))
-
-    def _landmark_prior_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        start = len(self.range_sel) + len(self.bearing_sel) + len(self.prior_pose)
-        stop = start + len(self.lprior_landmark)
-        return (
-            self.check_lo[start:stop],
-            self.check_hi[start:stop],
-            self.lprior_landmark,
-            self.lprior_coord,
-        )
-
-    def _params_known(self, pose_c: np.ndarray) -> np.ndarray:
-        """Which parameters ``params_from_world`` can take from (possibly NaN) pose centres."""
-        ok = np.zeros(self.n_params, dtype=bool)
-        known = ~np.any(np.isnan(pose_c), axis=1)
-        for a, k in self.anchors:
-            ok[k : k + 3] = known[a]
-        for st in self.steps:
-            both = known[st.parent] and known[st.child]
-            ok[st.turn] = ok[st.distance] = both
-        return ok
-
-    def _obs_mid(self, q: int, kind: str) -> float | None:
-        row = self._obs_row(q, kind)
-        return None if row is None else float(self.check_mid[row])
 
     def point(self, p: np.ndarray, residual: float = 0.0) -> WitnessPoint:
         """The :class:`WitnessPoint` of a parameter vector."""
