@@ -160,6 +160,7 @@ def _product_rows(
     return out
 
 
+@np.errstate(over="ignore", invalid="ignore")  # huge boxes: see the end of relax
 def relax(factors: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> LinearRelaxation:
     """The linear relaxation of the odometry and observation factors over the box ``[lo, hi]``.
 
@@ -225,6 +226,13 @@ def relax(factors: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> LinearRelaxati
     counts = np.concatenate([np.full(r[0].shape[0], r[0].shape[1]) for r in rows])
     row_ids = np.repeat(np.arange(len(counts)), counts)
     bounds = np.concatenate([r[2] for r in rows])
+    # huge boxes can overflow a Taylor form to inf - inf: a NaN side is dropped, and so is
+    # a row with a coefficient that is not finite (a relaxation may omit rows)
+    bad = np.zeros(len(counts), dtype=bool)
+    bad[row_ids[~np.isfinite(vals)]] = True
+    vals = np.where(bad[row_ids], 0.0, vals)
+    bounds[:, 0] = np.where(np.isnan(bounds[:, 0]) | bad, -np.inf, bounds[:, 0])
+    bounds[:, 1] = np.where(np.isnan(bounds[:, 1]) | bad, np.inf, bounds[:, 1])
     matrix = sparse.csr_matrix((vals, (row_ids, cols)), shape=(len(counts), width))
     return LinearRelaxation(
         matrix, bounds[:, 0], bounds[:, 1], col_lo, col_hi, aux_angle_cols, aux_is_cos
