@@ -397,6 +397,8 @@ def paper_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, dict]:
         "result.csv",
         "--truth",
         "trip.truth.json",
+        "--time-budget",
+        "120",  # the assertions below need lp to finish, however loaded the machine
         cwd=folder,
     )
     assert solved.returncode == 0, solved.stdout + solved.stderr
