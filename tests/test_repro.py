@@ -1,4 +1,5 @@
-"""The reproducers of issue 9, as regression tests (``tests/data/repro``, see its README).
+"""The reproducers of issue 9, as regression tests (``tests/data/repro``, see its README),
+and the minimal failing worlds the property tests found (``tests/data/found``).
 
 Each is a valid log; those with a ``.truth.json`` come from a known true world. With
 default options the true partition must survive, its boxes must hold the exact truth
@@ -23,8 +24,12 @@ from cuikslam.solver import solve
 from worlds import SEARCH_LEVELS, Truth, log_violations, true_index, truth_misses
 
 REPRO = Path(__file__).parent / "data" / "repro"
+FOUND = Path(__file__).parent / "data" / "found"
+"""Minimal failing worlds of the property tests, kept (see its README)."""
 WITH_TRUTH = sorted(p for p in REPRO.glob("*.jsonl") if p.with_suffix(".truth.json").is_file())
 WITHOUT_TRUTH = sorted(p for p in REPRO.glob("*.jsonl") if p not in WITH_TRUTH)
+CASES = WITH_TRUTH + sorted(FOUND.glob("*.jsonl"))
+"""Every log with a truth file."""
 HANG_GUARD = 60
 """Seconds before a subprocess counts as hung (the issue asks for 5 s end to end)."""
 QUICK = ["signed-zero-crash.jsonl", "subnormal-crash.jsonl"]
@@ -35,12 +40,12 @@ QUICK = ["signed-zero-crash.jsonl", "subnormal-crash.jsonl"]
 def _compiled() -> None:
     """Compile the kernels first: a cold numba cache costs tens of seconds, which the solve's
     time budget would count (a cold start is not what these tests are about)."""
-    for path in WITH_TRUTH:
+    for path in CASES:
         solve(read_log_file(path), time_budget=None)
 
 
 def truth_of(log_path: Path) -> Truth:
-    return Truth.from_file(log_path.with_suffix(".truth.json"))
+    return Truth.from_file(log_path.with_name(log_path.stem + ".truth.json"))
 
 
 def named_ids(log: Log) -> set[str]:
@@ -80,13 +85,13 @@ def test_every_reproducer_is_here() -> None:
     ]
 
 
-@pytest.mark.parametrize("path", WITH_TRUTH, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", CASES, ids=lambda p: p.stem)
 def test_reproducer_measures_its_world(path: Path) -> None:
     """The test data itself: every interval holds the truth, every sensor rule holds."""
     assert log_violations(read_log_file(path), truth_of(path)) == []
 
 
-@pytest.mark.parametrize("path", WITH_TRUTH, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", CASES, ids=lambda p: p.stem)
 def test_reproducer_keeps_the_truth_with_default_options(path: Path) -> None:
     log, truth = read_log_file(path), truth_of(path)
     solution = solve(log)
@@ -100,7 +105,7 @@ def test_reproducer_keeps_the_truth_with_default_options(path: Path) -> None:
 
 
 @pytest.mark.parametrize("level", sorted(SEARCH_LEVELS))
-@pytest.mark.parametrize("path", WITH_TRUTH, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", CASES, ids=lambda p: p.stem)
 def test_reproducer_keeps_the_truth_at_every_level(path: Path, level: str) -> None:
     log, truth = read_log_file(path), truth_of(path)
     solution = solve_unknown(log, **SEARCH_LEVELS[level])
@@ -110,13 +115,14 @@ def test_reproducer_keeps_the_truth_at_every_level(path: Path, level: str) -> No
     assert truth_misses(solution.hypotheses[index], truth, named_ids(log)) == []
 
 
-@pytest.mark.parametrize("path", WITH_TRUTH, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", CASES, ids=lambda p: p.stem)
 def test_reproducer_cli_checks_the_truth(path: Path, tmp_path: Path) -> None:
-    truth = path.with_suffix(".truth.json")
+    truth = path.with_name(path.stem + ".truth.json")
     result = run_cli("solve", path, "--json", tmp_path / "out.json", "--truth", truth, cwd=tmp_path)
     assert "Traceback" not in result.stderr, result.stderr
-    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-2000:]
-    assert "all contain the truth" in result.stdout
+    report = result.stdout[result.stdout.find("truth check") :][:2000]
+    assert result.returncode == 0, report + result.stderr[-2000:]
+    assert "all contain the truth" in result.stdout, report
     assert (tmp_path / "out.json").is_file()
 
 
