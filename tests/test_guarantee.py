@@ -26,7 +26,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, given, note, settings
+from hypothesis import HealthCheck, assume, given, note, settings
 from hypothesis import strategies as st
 
 from cuikslam.hypotheses import solve_unknown
@@ -59,8 +59,11 @@ SMALL = {"poses": (4, 8), "landmarks": (2, 5), "max_observations": 14}
 """Worlds for the searches: small enough for most searches to complete."""
 TINY = {"poses": (3, 6), "landmarks": (2, 4), "max_observations": 8}
 """Worlds for the ``lp`` searches (an LP per survivor)."""
-BUDGET = {"max_nodes": 20_000}
+BUDGET = {"max_nodes": 2_000}
 """Node expansions before a search stops, incomplete (then it proves nothing)."""
+LP_SURVIVORS = 10
+"""The ``lp`` searches run on worlds whose ``hull`` search leaves at most this many
+survivors (``lp`` costs an LP per variable of each; some tiny worlds leave 1,600)."""
 
 
 @contextmanager
@@ -107,7 +110,7 @@ def assert_keeps_truth(world: World, naming: str, solution: Solution) -> None:
 # --- the generator itself ----------------------------------------------------------------
 
 
-@ci(150)
+@ci(60)
 @given(worlds())
 def test_generated_logs_measure_their_world(world: World) -> None:
     """Every generated log is valid and holds the truth: else the tests below prove nothing."""
@@ -123,7 +126,7 @@ def test_the_generator_makes_every_kind_of_world() -> None:
     """Sensor kinds, priors, clusters, mixed naming and ambiguity all occur."""
     seen: Counter[str] = Counter()
 
-    @settings(max_examples=300, deadline=None, derandomize=True, suppress_health_check=HEALTH)
+    @settings(max_examples=150, deadline=None, derandomize=True, suppress_health_check=HEALTH)
     @given(worlds())
     def census(world: World) -> None:
         kind = world.notes[0].split("sensor ")[1].split(",")[0]
@@ -144,7 +147,7 @@ def test_the_generator_makes_every_kind_of_world() -> None:
 
     census()
     for kind in SENSOR_KINDS:
-        assert seen[f"sensor {kind}"] >= 10, seen
+        assert seen[f"sensor {kind}"] >= 5, seen
     for feature in (
         "landmark prior",
         "extra pose prior",
@@ -154,7 +157,7 @@ def test_the_generator_makes_every_kind_of_world() -> None:
         "range-only",
         "bearing-only",
     ):
-        assert seen[feature] >= 10, seen
+        assert seen[feature] >= 5, seen
 
 
 # --- (a) the true correspondence given ---------------------------------------------------
@@ -173,15 +176,15 @@ def check_known(world: World, level: str) -> None:
 
 
 @pytest.mark.parametrize("level", ["hull", "lp"])
-@ci(60)
+@ci(50)
 @given(world=worlds())
 def test_known_correspondence_is_never_refuted(world: World, level: str) -> None:
     check_known(world, level)
 
 
-@ci(60)
+@ci(40)
 @given(world=worlds(**SMALL))
-def test_named_search_keeps_the_only_partition(world: World) -> None:
+def test_named_search_keeps_the_only_correspondence(world: World) -> None:
     """Every observation named, through the search (its negative information included)."""
     with reported(world, "all"):
         assert_valid(world, "all")
@@ -201,6 +204,10 @@ def check_search(world: World, naming: str, level: str) -> None:
     with reported(world, naming):
         assert_valid(world, naming)
         log = world.log(naming)
+        if level != "hull":
+            hull = solve_unknown(log, **BUDGET, **SEARCH_LEVELS["hull"])
+            assert_keeps_truth(world, naming, hull)
+            assume(hull.complete and len(hull.hypotheses) <= LP_SURVIVORS)
         solution = solve_unknown(log, **BUDGET, **SEARCH_LEVELS[level])
         assert_keeps_truth(world, naming, solution)
 
@@ -214,7 +221,7 @@ def test_search_keeps_the_truth_at_hull(world: World, naming: str) -> None:
 
 @pytest.mark.parametrize("naming", ["none", "mixed"])
 @pytest.mark.parametrize("level", ["lp", "lp-during"])
-@ci(20)
+@ci(15)
 @given(world=worlds(**TINY))
 def test_search_keeps_the_truth_at_lp(world: World, naming: str, level: str) -> None:
     check_search(world, naming, level)
