@@ -75,12 +75,41 @@ def test_numbers_and_strings_mix_and_the_assignment_has_three_names(tmp_path: Pa
         truth = read_truth_file(path)
         assert truth.assignment == ["B", "A"]
         assert truth.pose_ids == [3, 7]
-        # the JSON number 0.1 is the decimal 1/10, not the float nearest to it
-        assert truth.exact_poses()[0] == (1, Fraction(1, 10), Fraction(1, 10))
+        # the string "0.1" is the decimal 1/10; the JSON number 0.1 is the double 0.1
+        assert truth.exact_poses()[0] == (1, Fraction(1, 10), Fraction(0.1))
         assert truth.exact_poses()[1] == (Fraction(-25, 10_000), 100, 0)
         assert truth.exact_landmark("B") == (Fraction(3, 10), 4)
         assert truth.landmark_class("A") == "door"
         assert truth.poses_xyt[0, 1] == 0.1
+
+
+def test_json_numbers_are_doubles_unless_longer(tmp_path: Path) -> None:
+    """A number printed as a double's shortest decimal is that double; a longer one is exact."""
+    long = "0.4963798642739724717198527465614949627954107281141256669848"
+    path = tmp_path / "truth.json"
+    path.write_text(
+        '{"poses": {"1": [-0.39269908169872414, 1e-05, ' + long + '], "2": [5e-324, 2, 1.5]},'
+        ' "landmarks": {}, "obs_truth": []}'
+    )
+    truth = read_truth_file(path)
+    assert truth.exact_poses()[0] == (
+        Fraction(-0.39269908169872414),
+        Fraction(1e-05),
+        Fraction(Decimal(long)),
+    )
+    assert truth.exact_poses()[1] == (Fraction(5e-324), 2, Fraction(3, 2))
+    assert truth.poses_xyt[0, 2] == float(long)
+
+
+def test_own_truth_files_check_exactly_against_their_floats(tmp_path: Path) -> None:
+    """A file written by write_truth_file reads back as the very same doubles."""
+    from cuikslam.simulate import simulate_paper
+    from cuikslam.simulate.truth import write_truth_file
+
+    truth = simulate_paper(0)[1]
+    write_truth_file(truth, tmp_path / "t.json")
+    back = read_truth_file(tmp_path / "t.json")
+    assert back.exact_poses() == [tuple(Fraction(float(v)) for v in row) for row in truth.poses_xyt]
 
 
 @pytest.mark.parametrize(

@@ -15,10 +15,13 @@ called ``obs_truth`` or ``observation_landmark``::
      "landmarks": {"L0": ["-3.5675477481952038161", "-4.42128592223", "c0"]},
      "obs_truth": ["L0", ..]}
 
-Every coordinate may be a JSON number or a decimal string. The values are kept exactly
-(:class:`fractions.Fraction`, see :meth:`GroundTruth.exact_poses`), next to their nearest
-floats (``poses_xyt``, ``landmarks_xy``): a decimal truth of 60 digits may lie just outside
-a box whose float bound equals its rounding, and only the exact value can tell.
+Every coordinate may be a JSON number or a decimal string. A decimal string is taken
+exactly; so is a JSON number, except one that is the shortest decimal of a double (as
+:func:`write_truth_file` and every JSON writer print doubles), which means that double:
+``-0.39269908169872414`` is the double nearest to -π/8, not the 17-digit decimal. The values
+are kept exactly (:class:`fractions.Fraction`, see :meth:`GroundTruth.exact_poses`), next to
+their nearest floats (``poses_xyt``, ``landmarks_xy``): a decimal truth of 60 digits may lie
+just outside a box whose float bound equals its rounding, and only the exact value can tell.
 """
 
 from __future__ import annotations
@@ -172,8 +175,7 @@ def read_truth_file(path: str | os.PathLike[str]) -> GroundTruth:
     except (OSError, UnicodeDecodeError) as exc:
         raise LogFormatError(path, None, f"cannot read truth file: {exc}") from exc
     try:
-        # Numbers are kept as their decimal text (Decimal), never rounded to a float.
-        doc = json.loads(text, parse_float=Decimal)
+        doc = json.loads(text, parse_float=_json_number)
     except json.JSONDecodeError as exc:
         raise LogFormatError(path, exc.lineno, f"not valid JSON: {exc.msg}") from exc
     except (ValueError, RecursionError) as exc:  # e.g. an integer of 5,000 digits
@@ -266,6 +268,16 @@ def _truth_from_json(doc: Any) -> GroundTruth:
         poses_exact=poses_exact,
         landmarks_exact=landmarks_exact,
     )
+
+
+def _json_number(text: str) -> float | Decimal:
+    """A JSON number: the double it is the shortest decimal of, else the exact decimal."""
+    exact = Decimal(text)
+    if len(text) <= 40 and exact.is_finite():
+        double = float(text)
+        if math.isfinite(double) and Decimal(repr(double)) == exact:
+            return double
+    return exact
 
 
 def _show(value: Any) -> str:
