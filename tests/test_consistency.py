@@ -74,7 +74,8 @@ def _exact_values(graph: KinematicGraph, truth: Truth, lo: np.ndarray, hi: np.nd
             continue
         xa, ya, ta, xb, yb, tb, ang, length = (int(v) for v in row[1:])
         dx, dy = values[xb] - values[xa], values[yb] - values[ya]
-        values[length] = _snap(MP.hypot(dx, dy))
+        scale = max(abs(values[v]) for v in (xa, ya, xb, yb))
+        values[length] = _snap(MP.hypot(dx, dy), scale)
         if tb >= 0:  # odometry: the turn (the heading is the direction of travel)
             values[ang] = values[tb] - values[ta]
         else:
@@ -86,14 +87,16 @@ def _exact_values(graph: KinematicGraph, truth: Truth, lo: np.ndarray, hi: np.nd
     return values
 
 
-def _snap(v):
+def _snap(v, scale):
     """``v`` recomputed from inexact poses: the float it is within 2^-1200 of, if any.
 
     The generator drives exact float distances, which ``hypot`` of the 1300-bit poses
-    gives back only to 2^-1290; an irrational true value is never that close to a float.
+    gives back only to 2^-1290 of the poses' magnitude ``scale`` (a distance of 1e-180
+    between poses near 1 keeps only its first ~200 digits); an irrational true value is
+    never that close to a float.
     """
     f = mpf(float(v))
-    return f if abs(v - f) <= abs(v) * MP.mpf(2) ** -1200 else v
+    return f if abs(v - f) <= (abs(v) + scale) * MP.mpf(2) ** -1200 else v
 
 
 def _inside(lo: np.ndarray, hi: np.ndarray, values: list) -> list[int]:
