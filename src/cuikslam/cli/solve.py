@@ -9,6 +9,7 @@ from rich.console import Console
 from cuikslam.budget import COMMAND_TARGET, MIN_COMMAND_BUDGET
 from cuikslam.cli._common import check_output_path, progress_bar, write_output
 from cuikslam.log.reader import read_log_file
+from cuikslam.log.records import Log
 from cuikslam.results.io import write_result_csv, write_result_file
 from cuikslam.results.solution import Solution, check_truth
 from cuikslam.results.table import hypothesis_table, summary_table
@@ -37,25 +38,34 @@ def print_solution(solution: Solution, console: Console, max_tables: int = 10) -
         )
 
 
-def _partition(assignment: list[str]) -> list[int]:
-    """Landmark labels renumbered by first appearance: equal for equal partitions."""
+def _partition(assignment: list[str], named: set[str] = frozenset()) -> list[int | str]:
+    """The assignment up to renaming: a named landmark keeps its id, others their first
+    observation's index."""
     first: dict[str, int] = {}
-    return [first.setdefault(a, len(first)) for a in assignment]
+    return [a if a in named else first.setdefault(a, len(first)) for a in assignment]
 
 
-def report_truth(solution: Solution, truth: GroundTruth, console: Console) -> bool:
+def _named(log: Log) -> set[str]:
+    """Landmark ids the log itself gives (named sightings and landmark priors)."""
+    return {r.landmark for r in log.records if getattr(r, "landmark", None) is not None}
+
+
+def report_truth(
+    solution: Solution, truth: GroundTruth, console: Console, named: set[str] = frozenset()
+) -> bool:
     """Print whether the true hypothesis survived and its boxes contain the truth.
 
     The true hypothesis is the survivor whose partition of the observations into
-    landmarks is the true one (labels may differ). Other hypotheses are wrong by
+    landmarks is the true one (labels may differ), with the landmarks the log names
+    (``named``) where the truth has them. Other hypotheses are wrong by
     construction, so their boxes need not contain the true poses. Returns True when the
     guarantee held.
     """
     if not solution.hypotheses:
         console.print("truth check: no hypothesis survived, yet the truth satisfies the log")
         return False
-    true_partition = _partition(truth.assignment)
-    rank = _rank_of_truth(solution, true_partition)
+    true_partition = _partition(truth.assignment, named)
+    rank = _rank_of_truth(solution, true_partition, named)
     if rank == 0:
         survivors = int(solution.statistics.get("survivors", len(solution.hypotheses)))
         if survivors > len(solution.hypotheses):
@@ -93,9 +103,9 @@ def report_truth(solution: Solution, truth: GroundTruth, console: Console) -> bo
     return True
 
 
-def _rank_of_truth(solution: Solution, true_partition: list[int]) -> int:
+def _rank_of_truth(solution: Solution, true_partition: list[int | str], named: set[str]) -> int:
     for rank, h in enumerate(solution.hypotheses, start=1):
-        if _partition(h.assignment) == true_partition:
+        if _partition(h.assignment, named) == true_partition:
             return rank
     return 0
 
@@ -148,7 +158,7 @@ def run_solve(
         for message in solution.messages:
             console.print(message)
     status = 0
-    if truth is not None and not report_truth(solution, truth, console):
+    if truth is not None and not report_truth(solution, truth, console, _named(log)):
         status = 1
     if solution.refuted:
         status = 1
