@@ -69,3 +69,16 @@ def test_a_truth_beyond_the_report_is_not_called_missing(tmp_path: Path) -> None
     one = subprocess.run([*run, "--max-hypotheses", "1"], capture_output=True, text=True)
     assert one.returncode == 0, one.stdout + one.stderr
     assert "reported of 2 survivors" in one.stdout
+
+
+def test_a_budget_stop_without_survivors_is_not_a_failed_truth_check() -> None:
+    found = Path(__file__).parent / "data" / "adversary"
+    log, truth = (
+        found / "budget-stop-no-survivor.jsonl",
+        found / "budget-stop-no-survivor.truth.json",
+    )
+    run = [sys.executable, "-m", "cuikslam.cli.main", "solve", str(log), "--truth", str(truth)]
+    done = subprocess.run([*run, "--time-budget", "0.001"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "stopped on its budget" in done.stdout
+    assert "Traceback" not in done.stderr
