@@ -81,7 +81,7 @@ def reported(world: World, naming: str) -> Iterator[None]:
         folder = os.environ.get("CUIKSLAM_GUARANTEE_FAILURES")
         if folder:
             test = os.environ.get("PYTEST_CURRENT_TEST", "test").split("::")[-1].split(" ")[0]
-            stem = "".join(c if c.isalnum() or c in "-_" else "-" for c in test)
+            stem = "".join(c if c.isalnum() or c in "-_" else "-" for c in test).strip("-")
             world.save(Path(folder), stem, naming)
         raise
 
