@@ -77,7 +77,10 @@ def _exact_values(graph: KinematicGraph, truth: Truth, lo: np.ndarray, hi: np.nd
         scale = max(abs(values[v]) for v in (xa, ya, xb, yb))
         values[length] = _snap(MP.hypot(dx, dy), scale)
         if tb >= 0:  # odometry: the turn (the heading is the direction of travel)
-            values[ang] = values[tb] - values[ta]
+            # a float turn between irrational headings (after a loop closure) comes back
+            # only to 2^-1290 of the headings' magnitude
+            turn_scale = max(abs(values[ta]), abs(values[tb]))
+            values[ang] = _snap(values[tb] - values[ta], turn_scale)
         else:
             values[ang] = MP.atan2(dy, dx) - values[ta]
     angles = {int(v) for row in graph.factor_table() for v in (row[3], row[6], row[7])}
@@ -90,10 +93,11 @@ def _exact_values(graph: KinematicGraph, truth: Truth, lo: np.ndarray, hi: np.nd
 def _snap(v, scale):
     """``v`` recomputed from inexact poses: the float it is within 2^-1200 of, if any.
 
-    The generator drives exact float distances, which ``hypot`` of the 1300-bit poses
-    gives back only to 2^-1290 of the poses' magnitude ``scale`` (a distance of 1e-180
-    between poses near 1 keeps only its first ~200 digits); an irrational true value is
-    never that close to a float.
+    The generator drives exact float distances and turns, which ``hypot`` or a difference
+    of the 1300-bit poses gives back only to 2^-1290 of the poses' magnitude ``scale`` (a
+    distance of 1e-180 between poses near 1 keeps only its first ~200 digits; a turn
+    between headings made irrational by a loop closure); an irrational true value is never
+    that close to a float.
     """
     f = mpf(float(v))
     return f if abs(v - f) <= (abs(v) + scale) * MP.mpf(2) ** -1200 else v
