@@ -14,8 +14,7 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-
-from rich.console import Console
+from typing import TYPE_CHECKING
 
 from cuikslam import __version__
 from cuikslam.budget import COMMAND_TARGET, MIN_COMMAND_BUDGET
@@ -26,6 +25,9 @@ from cuikslam.cli._common import (
     write_output,
 )
 from cuikslam.log.errors import LogFormatError
+
+if TYPE_CHECKING:
+    from rich.console import Console
 
 __all__ = ["main"]
 
@@ -39,6 +41,8 @@ EXIT_INPUT = 2
 
 def _console() -> Console:
     """stdout console; wide when piped so tables do not wrap."""
+    from rich.console import Console
+
     if sys.stdout.isatty():
         return Console()
     return Console(width=220, color_system=None, soft_wrap=False)
@@ -73,6 +77,7 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         truth_path=args.truth,
         quiet=args.quiet,
         console=_console(),
+        table=args.table,
         consistency=args.consistency,
         max_hypotheses=args.max_hypotheses,
         strengthen_limit=args.strengthen_limit,
@@ -192,6 +197,20 @@ def _cmd_plot(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from cuikslam.cli.evaluate import run_evaluate
+
+    return run_evaluate(
+        result_path=args.result,
+        truth_path=args.truth,
+        log_path=args.log,
+        json_path=args.json,
+        figure_path=args.figure,
+        quiet=args.quiet,
+        console=_console(),
+    )
+
+
 # --------------------------------------------------------------------------- parser
 def _add_solver_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
@@ -302,6 +321,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--csv", help="write the boxes as CSV here")
     p.add_argument("--truth", help="ground-truth JSON: report whether every box contains it")
     p.add_argument("-q", "--quiet", action="store_true", help="print no table")
+    p.add_argument(
+        "--table",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="print every box (--table) or an overview (--no-table); default: every box "
+        "up to 60 poses, an overview beyond",
+    )
     _add_solver_options(p)
     p.set_defaults(func=_cmd_solve)
 
@@ -368,6 +394,27 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-panels", type=int, default=12, help="hypotheses drawn at most")
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=_cmd_plot)
+
+    p = sub.add_parser(
+        "evaluate",
+        help="measure a result against its ground truth",
+        description="Share of boxes holding the truth, box widths, and (unknown "
+        "correspondence) the rank of the true association and the share of observations "
+        "the best hypothesis associates correctly. Exit status 1 when the guarantee visibly "
+        "failed (the true hypothesis has a box missing the truth, or a complete search "
+        "refuted it).",
+    )
+    p.add_argument("result", help="result JSON written by `cuikslam solve --json`")
+    p.add_argument("--truth", required=True, help="ground-truth JSON (may cover only some poses)")
+    p.add_argument(
+        "--log",
+        help="the solved log, for the landmark ids it names (default: the log the result "
+        "names, when it is still there)",
+    )
+    p.add_argument("--json", help="write the evaluation as JSON for scripts")
+    p.add_argument("--figure", help="draw boxes, truth and widths over time (.png, .pdf, .svg)")
+    p.add_argument("-q", "--quiet", action="store_true", help="no tables")
+    p.set_defaults(func=_cmd_evaluate)
     return parser
 
 

@@ -1,0 +1,167 @@
+"""``cuikslam evaluate``: a result against its ground truth, as tables, JSON and a figure."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+from cuikslam._atomic import atomic_write_text
+from cuikslam.cli._common import CommandError, check_figure_path, check_output_path, write_output
+from cuikslam.log.errors import LogFormatError
+from cuikslam.log.reader import read_log_file
+from cuikslam.results.evaluate import Evaluation, evaluate, evaluation_to_json
+from cuikslam.results.io import read_result_file
+from cuikslam.simulate.truth import read_truth_file
+
+__all__ = ["print_evaluation", "run_evaluate"]
+
+
+def _named_ids(log_path: str | None, result_log: str, notes: list[str]) -> set[str]:
+    """Landmark ids the log names: from ``--log``, else the log the result names when it
+    is still readable; else none (partitions are then compared without names)."""
+    path = log_path or result_log
+    if not path:
+        notes.append("no log given: partitions compared without the log's landmark names")
+        return set()
+    if log_path is None and not Path(path).is_file():
+        notes.append(f"the result's log {path} is not there: partitions compared without names")
+        return set()
+    try:
+        log = read_log_file(path)
+    except LogFormatError:
+        if log_path is not None:
+            raise
+        notes.append(f"the result's log {path} is unreadable: partitions compared without names")
+        return set()
+    return {r.landmark for r in log.records if getattr(r, "landmark", None) is not None}
+
+
+def _pct(part: int, whole: int) -> str:
+    return f"{part} of {whole} ({100 * part / whole:.1f} %)" if whole else "none with truth"
+
+
+def _num(value: float, digits: int = 3) -> str:
+    return "unbounded" if math.isinf(value) else "—" if math.isnan(value) else f"{value:.{digits}f}"
+
+
+def print_evaluation(ev: Evaluation, console: Console) -> None:
+    """The evaluation as a few rich tables a reader takes in at a glance."""
+    head = Table(title="Evaluation against the truth", show_header=False)
+    head.add_column(style="bold")
+    head.add_column()
+    which = f"{ev.evaluated_rank} of {ev.reported} reported"
+    which += " (the true correspondence)" if ev.evaluated_is_true else ""
+    head.add_row("hypothesis evaluated", which)
+    head.add_row("poses with truth inside their box", _pct(ev.poses_inside, ev.poses_with_truth))
+    if ev.poses_without_truth:
+        head.add_row("poses without truth (not counted)", str(ev.poses_without_truth))
+    if ev.truth_poses_not_in_result:
+        head.add_row("truth poses not in the result", str(ev.truth_poses_not_in_result))
+    head.add_row(
+        "landmarks with truth inside their box", _pct(ev.landmarks_inside, ev.landmarks_with_truth)
+    )
+    if ev.landmarks_without_truth:
+        head.add_row("landmarks without truth", str(ev.landmarks_without_truth))
+    if ev.observations:
+        rank = (
+            str(ev.true_rank)
+            if ev.true_rank
+            else f"not among the {ev.reported} reported of {ev.survivors} survivors"
+        )
+        head.add_row("rank of the true correspondence", rank)
+        if ev.correct_associations is not None:
+            head.add_row(
+                "observations associated correctly by the best",
+                _pct(ev.correct_associations, ev.observations),
+            )
+    if not ev.complete:
+        head.add_row("search", "INCOMPLETE (a budget stopped it)")
+    console.print(head)
+
+    widths = Table(title="Box widths")
+    for name in ("", "median", "95 %", "max"):
+        widths.add_column(name, justify="right" if name else "left")
+    labels = {
+        "x": "pose x [m]",
+        "y": "pose y [m]",
+        "theta": "pose θ [rad]",
+        "landmark_x": "landmark x [m]",
+        "landmark_y": "landmark y [m]",
+    }
+    for key, stats in ev.widths().items():
+        if stats.count:
+            widths.add_row(
+                escape(labels[key]), _num(stats.median), _num(stats.p95), _num(stats.max)
+            )
+    console.print(widths)
+
+    segments = ev.over_time()
+    if len(segments) > 1:
+        over = Table(title="Median pose widths over the run")
+        for name in ("poses", "x [m]", "y [m]", "θ [rad]", "truth inside"):
+            over.add_column(escape(name), justify="right")
+        for seg in segments:
+            over.add_row(
+                f"{seg['first_pose']}–{seg['last_pose']}",
+                _num(seg["median_x"]),
+                _num(seg["median_y"]),
+                _num(seg["median_theta"]),
+                f"{seg['inside']}/{seg['with_truth']}",
+            )
+        console.print(over)
+    if ev.misses:
+        console.print(f"{len(ev.misses)} bounds miss the truth:")
+        for miss in ev.misses[:20]:
+            console.print(f"  {miss}")
+        if len(ev.misses) > 20:
+            console.print(f"  … {len(ev.misses) - 20} more in the JSON (--json)")
+    for note in ev.notes:
+        console.print(f"note: {note}")
+    if ev.guarantee_held is False:
+        console.print("the guarantee did not hold: some measured interval misses its true value")
+
+
+def run_evaluate(
+    *,
+    result_path: str,
+    truth_path: str,
+    log_path: str | None,
+    json_path: str | None,
+    figure_path: str | None,
+    quiet: bool,
+    console: Console,
+) -> int:
+    """Evaluate, print, write the JSON and figure. Returns 1 when the guarantee visibly
+    failed (see :attr:`Evaluation.guarantee_held`), else 0."""
+    if json_path:
+        check_output_path(json_path)
+    if figure_path:
+        check_figure_path(figure_path)
+    solution = read_result_file(result_path)
+    truth = read_truth_file(truth_path)
+    notes: list[str] = []
+    named = _named_ids(log_path, solution.log_path, notes)
+    if not solution.hypotheses:
+        raise CommandError(f"{result_path}: no hypothesis to evaluate (the log was refuted)")
+    try:
+        ev = evaluate(solution, truth, named)
+    except ValueError as err:
+        raise CommandError(f"{truth_path}: does not match {result_path}: {err}") from None
+    ev.notes[:0] = notes
+    if json_path:
+        text = json.dumps(evaluation_to_json(ev), indent=1, allow_nan=False) + "\n"
+        write_output(json_path, lambda: atomic_write_text(json_path, text))
+    if figure_path:
+        from cuikslam.results.evaluation_figure import plot_evaluation
+        from cuikslam.results.figures import save_figure
+
+        figure = plot_evaluation(solution, truth, ev)
+        write_output(figure_path, lambda: save_figure(figure, figure_path))
+    if not quiet:
+        print_evaluation(ev, console)
+    return 1 if ev.guarantee_held is False else 0

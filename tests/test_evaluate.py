@@ -1,0 +1,191 @@
+"""``cuikslam evaluate``: containment, widths and association against small hand-made truths."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cuikslam.cli.main import main
+from cuikslam.results.evaluate import evaluate, evaluation_to_json
+from cuikslam.results.io import write_result_file
+from cuikslam.results.solution import Hypothesis, Solution
+from cuikslam.simulate.truth import read_truth_file
+
+
+def _hypothesis(
+    assignment: list[str], landmark_ids: list[str], theta_hi: float = 0.1
+) -> Hypothesis:
+    poses = np.array(
+        [
+            [[-0.1, 0.1], [-0.1, 0.1], [-0.1, theta_hi]],
+            [[0.9, 1.2], [-0.2, 0.2], [-0.2, 0.2]],
+            [[1.8, 2.4], [-0.4, 0.4], [-0.3, 0.3]],
+        ]
+    )
+    landmarks = np.array([[[2.0 + k, 4.0 + k], [0.5, 1.5]] for k in range(len(landmark_ids))])
+    return Hypothesis(
+        assignment=assignment,
+        pose_ids=[0, 1, 2],
+        poses=poses,
+        landmark_ids=landmark_ids,
+        landmark_classes=["post"] * len(landmark_ids),
+        landmarks=landmarks.reshape(len(landmark_ids), 2, 2),
+    )
+
+
+def _truth_doc(poses: dict, assignment: list[str]) -> dict:
+    return {
+        "poses": poses,
+        "landmarks": {
+            "A": {"class": "post", "x": 3.0, "y": 1.0},
+            "B": {"class": "post", "x": 4.5, "y": 1.0},
+        },
+        "assignment": assignment,
+    }
+
+
+def _write(tmp_path: Path, solution: Solution, truth: dict) -> tuple[str, str]:
+    result, truth_path = tmp_path / "r.json", tmp_path / "t.truth.json"
+    write_result_file(solution, result)
+    truth_path.write_text(json.dumps(truth))
+    return str(result), str(truth_path)
+
+
+def test_partial_truth_counts_only_poses_with_truth_and_finds_the_miss(tmp_path: Path) -> None:
+    # Pose 0's heading box ends at 0.1; its truth is 0.1 + 1e-20 as a decimal string: a miss
+    # only an exact comparison sees. Pose 2 has no truth (a Vicon gap).
+    truth = _truth_doc(
+        {"0": [0, 0, "0.10000000000000000555111512312578270211815834045410157"], "1": [1, 0, 0]},
+        ["A", "B"],
+    )
+    solution = Solution([_hypothesis(["A", "B"], ["A", "B"])], log_path="")
+    result, truth_path = _write(tmp_path, solution, truth)
+    ev = evaluate(solution, read_truth_file(truth_path))
+    assert ev.pose_inside == [False, True, None]
+    assert (ev.poses_with_truth, ev.poses_inside, ev.poses_without_truth) == (2, 1, 1)
+    assert ev.misses == [
+        "pose 0 theta=0.1000000000000000055511151 (decimal) not in [-0.1, 0.1] (mod 2pi)"
+    ]
+    assert (ev.landmarks_with_truth, ev.landmarks_inside) == (2, 2)
+    assert ev.guarantee_held is False  # the sole survivor of a complete search misses
+    out = tmp_path / "ev.json"
+    assert main([
+        "evaluate", result, "--truth", truth_path, "--json", str(out), "-q"
+    ]) == 1  # fmt: skip
+    doc = json.loads(out.read_text())
+    assert doc["poses"] == {
+        "total": 3,
+        "with_truth": 2,
+        "inside": 1,
+        "share_inside": 0.5,
+        "without_truth": 1,
+        "truth_poses_not_in_result": 0,
+    }
+    assert doc["widths"]["x"] == {"median": 1.2 - 0.9, "p95": 2.4 - 1.8, "max": 2.4 - 1.8}
+
+
+def test_widths_over_time_and_an_unbounded_box() -> None:
+    h = _hypothesis(["A"], ["A"])
+    h.poses[2, 0] = [-math.inf, math.inf]
+    truth_doc = _truth_doc({"0": [0, 0, 0], "1": [1, 0, 0], "2": [2, 0, 0]}, ["A"])
+    from cuikslam.simulate.truth import _truth_from_json
+
+    ev = evaluate(Solution([h]), _truth_from_json(truth_doc))
+    stats = ev.widths()
+    assert stats["x"].max == math.inf and stats["x"].median == pytest.approx(0.3)
+    assert [s["poses"] for s in ev.over_time()] == [1, 1, 1]
+    doc = evaluation_to_json(ev)
+    assert doc["widths"]["x"]["max"] is None  # JSON has no infinity
+    assert doc["poses"]["inside"] == 3
+
+
+def test_unknown_correspondence_rank_and_share_by_partition() -> None:
+    # Truth: observations 0, 2 see A, observation 1 sees B. The best-ranked hypothesis
+    # merges all three (observation 1 wrong: it follows #0 instead of being new, and
+    # observation 2 follows #1 instead of #0); the second has the true partition under
+    # other names.
+    from cuikslam.simulate.truth import _truth_from_json
+
+    truth = _truth_from_json(
+        _truth_doc({"0": [0, 0, 0], "1": [1, 0, 0], "2": [2, 0, 0]}, ["A", "B", "A"])
+    )
+    wrong = _hypothesis(["L1", "L1", "L1"], ["L1"])
+    right = _hypothesis(["L2", "L1", "L2"], ["L1", "L2"])
+    ev = evaluate(Solution([wrong, right], statistics={"survivors": 2}), truth)
+    assert (ev.true_rank, ev.evaluated_rank) == (2, 2)
+    assert ev.correct_associations == 1
+    # landmark L2 is A ([3, 5] x [0.5, 1.5] holds (3, 1)); L1 is B ([2, 4] misses 4.5)
+    assert (ev.landmarks_with_truth, ev.landmarks_inside) == (2, 1)
+    assert ev.guarantee_held is False
+
+
+def test_named_landmarks_keep_their_names() -> None:
+    # The log names A; a hypothesis that calls the landmark of observation 0 "B" (a new
+    # landmark given the name B) and observation 1 "A" has the true partition but not the
+    # true names.
+    from cuikslam.simulate.truth import _truth_from_json
+
+    truth = _truth_from_json(_truth_doc({"0": [0, 0, 0]}, ["A", "B"]))
+    swapped = _hypothesis(["B", "A"], ["A", "B"])
+    assert evaluate(Solution([swapped]), truth).true_rank == 1
+    ev = evaluate(Solution([swapped], statistics={"survivors": 1}), truth, named={"A"})
+    assert ev.true_rank is None and ev.correct_associations == 0
+    assert ev.guarantee_held is False  # complete, every survivor reported, truth absent
+
+
+def test_an_incomplete_search_without_the_truth_says_nothing() -> None:
+    from cuikslam.simulate.truth import _truth_from_json
+
+    truth = _truth_from_json(_truth_doc({"0": [0, 0, 0]}, ["A", "B"]))
+    ev = evaluate(Solution([_hypothesis(["A", "A"], ["A"])], complete=False), truth)
+    assert ev.true_rank is None and ev.guarantee_held is None
+
+
+def test_cli_writes_tables_and_figure(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    truth = _truth_doc({"0": [0, 0, 0], "1": [1, 0, 0]}, ["A", "B"])
+    result, truth_path = _write(tmp_path, Solution([_hypothesis(["A", "B"], ["A", "B"])]), truth)
+    figure = tmp_path / "ev.png"
+    assert main(["evaluate", result, "--truth", truth_path, "--figure", str(figure)]) == 0
+    out = capsys.readouterr().out
+    assert "2 of 2 (100.0 %)" in out and "poses without truth (not counted)" in out
+    assert "pose x [m]" in out
+    assert figure.stat().st_size > 10_000
+
+
+@pytest.mark.parametrize(
+    ("make", "expected"),
+    [
+        (lambda r, t: Path(r).unlink(), "r.json: cannot read result file"),
+        (lambda r, t: Path(t).write_text("{"), "t.truth.json:1: not valid JSON"),
+        (
+            lambda r, t: Path(t).write_text(json.dumps(_truth_doc({"0": [0, 0, 0]}, ["A"]))),
+            "t.truth.json: does not match",
+        ),
+        (
+            lambda r, t: Path(t).write_text(json.dumps(_truth_doc({"7": [0, 0, 0]}, ["A", "B"]))),
+            "none of the truth's 1 poses is a pose of the result",
+        ),
+        (lambda r, t: Path(r).write_text('{"hypotheses": 3}'), "not a cuikslam result file"),
+    ],
+)
+def test_bad_input_is_one_line_exit_2_and_no_output(
+    tmp_path: Path, capsys: pytest.CaptureFixture, make, expected: str
+) -> None:
+    truth = _truth_doc({"0": [0, 0, 0]}, ["A", "B"])
+    result, truth_path = _write(tmp_path, Solution([_hypothesis(["A", "B"], ["A", "B"])]), truth)
+    make(result, truth_path)
+    out = tmp_path / "ev.json"
+    assert main(["evaluate", result, "--truth", truth_path, "--json", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert expected in err and len(err.strip().splitlines()) == 1 and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_a_refuted_result_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    result, truth_path = _write(tmp_path, Solution([]), _truth_doc({"0": [0, 0, 0]}, []))
+    assert main(["evaluate", result, "--truth", truth_path]) == 2
+    assert "no hypothesis to evaluate" in capsys.readouterr().err
