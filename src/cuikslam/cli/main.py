@@ -14,8 +14,7 @@ import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
-
-from rich.console import Console
+from typing import TYPE_CHECKING
 
 from cuikslam import __version__
 from cuikslam.budget import COMMAND_TARGET, MIN_COMMAND_BUDGET
@@ -26,6 +25,9 @@ from cuikslam.cli._common import (
     write_output,
 )
 from cuikslam.log.errors import LogFormatError
+
+if TYPE_CHECKING:
+    from rich.console import Console
 
 __all__ = ["main"]
 
@@ -39,6 +41,8 @@ EXIT_INPUT = 2
 
 def _console() -> Console:
     """stdout console; wide when piped so tables do not wrap."""
+    from rich.console import Console
+
     if sys.stdout.isatty():
         return Console()
     return Console(width=220, color_system=None, soft_wrap=False)
@@ -73,6 +77,7 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         truth_path=args.truth,
         quiet=args.quiet,
         console=_console(),
+        table=args.table,
         consistency=args.consistency,
         max_hypotheses=args.max_hypotheses,
         strengthen_limit=args.strengthen_limit,
@@ -316,6 +321,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--csv", help="write the boxes as CSV here")
     p.add_argument("--truth", help="ground-truth JSON: report whether every box contains it")
     p.add_argument("-q", "--quiet", action="store_true", help="print no table")
+    p.add_argument(
+        "--table",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="print every box (--table) or an overview (--no-table); default: every box "
+        "up to 60 poses, an overview beyond",
+    )
     _add_solver_options(p)
     p.set_defaults(func=_cmd_solve)
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 
 from rich.console import Console
 
@@ -11,31 +12,71 @@ from cuikslam.cli._common import check_output_path, progress_bar, write_output
 from cuikslam.log.reader import read_log_file
 from cuikslam.log.records import Log
 from cuikslam.results.io import write_result_csv, write_result_file
+from cuikslam.results.overview import overview_lines
 from cuikslam.results.solution import Solution, check_truth
+from cuikslam.results.summary import summary_holds
 from cuikslam.results.table import hypothesis_table, summary_table
 from cuikslam.simulate.truth import GroundTruth, read_truth_file
 
-__all__ = ["print_solution", "report_truth", "run_solve"]
+__all__ = ["TABLE_MAX_POSES", "print_solution", "report_truth", "run_solve"]
 
 
-def print_solution(solution: Solution, console: Console, max_tables: int = 10) -> None:
-    """Print every hypothesis (up to ``max_tables`` full tables) in the seed's layout."""
+TABLE_MAX_POSES = 60
+"""Results with more poses than this get an overview on the terminal, not every row."""
+SUMMARY_ROWS = 20
+"""Hypotheses listed (and observations of each assignment shown) in an overview."""
+
+
+def print_solution(
+    solution: Solution,
+    console: Console,
+    max_tables: int = 10,
+    *,
+    table: bool | None = None,
+    outputs: Sequence[str] = (),
+) -> None:
+    """Print the hypotheses: full tables in the seed's layout, or an overview.
+
+    Parameters
+    ----------
+    solution : Solution
+        What the solve found.
+    console : Console
+        Where to print.
+    max_tables : int
+        Full tables printed at most (the best-ranked hypotheses).
+    table : bool or None
+        True: full tables; False: an overview of the best hypothesis; None (default):
+        full tables when the result has at most :data:`TABLE_MAX_POSES` poses.
+    outputs : sequence of str
+        Files that hold every box (named in the overview).
+    """
     for message in solution.messages:
         console.print(message)
     if not solution.hypotheses:
         return
-    if len(solution.hypotheses) > 1:
-        console.print(summary_table(solution))
-    for rank, h in enumerate(solution.hypotheses[:max_tables], start=1):
-        title = (
-            f"Hypothesis {rank} of {len(solution.hypotheses)}: "
-            f"{h.n_landmarks} landmarks, {h.status}"
-        )
-        console.print(hypothesis_table(h, title))
-    if len(solution.hypotheses) > max_tables:
+    if table is None:
+        table = max(len(h.pose_ids) for h in solution.hypotheses) <= TABLE_MAX_POSES
+    n = len(solution.hypotheses)
+    if n > 1:
+        console.print(summary_table(solution, limit=None if table else SUMMARY_ROWS))
+        if not table and n > SUMMARY_ROWS:
+            console.print(f"… {n - SUMMARY_ROWS:,} more hypotheses in the result files")
+    shown = solution.hypotheses[: max_tables if table else 1]
+    for rank, h in enumerate(shown, start=1):
+        title = f"Hypothesis {rank} of {n}: {h.n_landmarks} landmarks, {h.status}"
+        if table:
+            console.print(hypothesis_table(h, title))
+        else:
+            for line in overview_lines(h, title):
+                console.print(line, highlight=False, markup=False)
+    if not table:
+        where = " and ".join(outputs) if outputs else "no file (give --json or --csv)"
         console.print(
-            f"… {len(solution.hypotheses) - max_tables} more hypotheses in the JSON result"
+            f"every box: {where}; --table prints them all here", highlight=False, markup=False
         )
+    elif n > max_tables:
+        console.print(f"… {n - max_tables} more hypotheses in the JSON result")
 
 
 def _partition(assignment: list[str], named: set[str] = frozenset()) -> list[int | str]:
@@ -74,6 +115,17 @@ def report_truth(
     rank = _rank_of_truth(solution, true_partition, named)
     if rank == 0:
         survivors = int(solution.statistics.get("survivors", len(solution.hypotheses)))
+        held = (
+            None
+            if solution.correspondence is None
+            else summary_holds(solution.correspondence, truth.assignment, named)
+        )
+        if survivors > len(solution.hypotheses) and held is False and solution.complete:
+            console.print(
+                f"truth check: the true correspondence is not among the {survivors} survivors "
+                "(the correspondence summary covers every one)"
+            )
+            return False
         if survivors > len(solution.hypotheses):
             console.print(
                 f"truth check: the true correspondence is not among the {len(solution.hypotheses)}"
@@ -124,6 +176,7 @@ def run_solve(
     truth_path: str | None,
     quiet: bool,
     console: Console,
+    table: bool | None = None,
     consistency: str = "auto",
     max_hypotheses: int = 10_000,
     strengthen_limit: int = 100,
@@ -159,7 +212,8 @@ def run_solve(
     if csv_path:
         write_output(csv_path, lambda: write_result_csv(solution, csv_path))
     if not quiet:
-        print_solution(solution, console)
+        outputs = [str(path) for path in (json_path, csv_path) if path]
+        print_solution(solution, console, table=table, outputs=outputs)
     else:  # no tables, but what the solve found out (e.g. "the log is inconsistent") is kept
         for message in solution.messages:
             console.print(message)

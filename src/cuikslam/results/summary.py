@@ -15,7 +15,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Ambiguity", "CorrespondenceSummary", "describe", "summarize", "summary_to_json"]
+__all__ = [
+    "Ambiguity",
+    "CorrespondenceSummary",
+    "describe",
+    "summarize",
+    "summary_holds",
+    "summary_to_json",
+]
 
 NEW = "new"
 """An observation that is the first sighting of an anonymous landmark."""
@@ -144,6 +151,37 @@ def summary_to_json(summary: CorrespondenceSummary) -> dict:
         ],
         **({} if summary.poses is None else {"pose_hull": summary.poses.tolist()}),
     }
+
+
+def summary_holds(document: dict, assignment: list[str], named: set[str]) -> bool | None:
+    """Whether a result's ``correspondence`` document holds ``assignment`` as a survivor.
+
+    Parameters
+    ----------
+    document : dict
+        The ``correspondence`` of a result (:func:`summary_to_json` plus ``survivors``).
+    assignment : list of str
+        A landmark id per observation (e.g. the true one).
+    named : set of str
+        Landmark ids the log names.
+
+    Returns
+    -------
+    bool or None
+        True or False when the document's factors describe every survivor (their
+        combinations number ``survivors``); None when it cannot tell.
+    """
+    factors = document.get("factors", [])
+    combinations = math.prod(len(f["choices"]) for f in factors)
+    follows = document.get("follows", [])
+    if combinations != document.get("survivors") or len(follows) != len(assignment):
+        return None
+    row = _follows(assignment, named)
+    if any(c and row[i] != follows[i][0] for i, c in enumerate(document["certain"])):
+        return False
+    return all(
+        [row[i] for i in f["observations"]] in [list(c) for c in f["choices"]] for f in factors
+    )
 
 
 def describe(summary: CorrespondenceSummary, survivors: int) -> str:

@@ -89,19 +89,31 @@ def comparison_table(
     return table
 
 
-def summary_table(solution: Solution, title: str = "Surviving hypotheses") -> Table:
-    """One line per hypothesis: rank, landmarks, status, level, total box size, assignment."""
+def summary_table(
+    solution: Solution, title: str = "Surviving hypotheses", limit: int | None = None
+) -> Table:
+    """One line per hypothesis: rank, landmarks, status, level, total box size, assignment.
+
+    With ``limit``, only the first ``limit`` hypotheses, and each assignment cut after
+    ``limit`` observations."""
     table = Table(title=title, title_justify="left")
     columns = ("rank", "landmarks", "status", "level", "Σ widths")
     for name in (*columns, "assignment (observation → landmark)"):
         table.add_column(name)
-    for rank, h in enumerate(solution.hypotheses, start=1):
+    for rank, h in enumerate(solution.hypotheses[:limit], start=1):
         table.add_row(
             str(rank),
             str(h.n_landmarks),
             h.status,
             h.consistency or "—",
             f"{h.box_size:.2f}",
-            " ".join(h.assignment),
+            _assignment_text(h.assignment, limit),
         )
     return table
+
+
+def _assignment_text(assignment: Sequence[str], limit: int | None) -> str:
+    """The assignment, cut after ``limit`` observations (when given) with a count of the rest."""
+    if limit is None or len(assignment) <= limit:
+        return " ".join(assignment)
+    return " ".join(assignment[:limit]) + f" … ({len(assignment) - limit:,} more)"
