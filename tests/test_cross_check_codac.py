@@ -71,10 +71,14 @@ def _noisy(rng: np.random.Generator, value: mpmath.mpf, bound: float) -> tuple[f
     return _down(measured - mpf(bound)), _up(measured + mpf(bound))
 
 
-def random_world(seed: int, n_poses: int, n_landmarks: int, corrupt: bool = False) -> World:
+def random_world(
+    seed: int, n_poses: int, n_landmarks: int, corrupt: bool = False, relative: bool = False
+) -> World:
     """A robot wandering among landmarks, observing those within 8 m (range and bearing).
 
     With ``corrupt``, one observation's range interval is moved 2 to 4 m off the truth.
+    With ``relative``, each move is logged as a relative pose (dx, dy, dtheta) instead of
+    a turn and a distance.
     """
     rng = np.random.default_rng(seed)
     turn_b, dist_b = rng.uniform(0.002, 0.05), rng.uniform(0.005, 0.1)
@@ -105,7 +109,18 @@ def random_world(seed: int, n_poses: int, n_landmarks: int, corrupt: bool = Fals
     for i in range(n_poses):
         if i > 0:
             turn, distance = mpf(turns[i]), mpf(steps[i])
-            graph.add_odometry(i - 1, i, _noisy(rng, turn, turn_b), _noisy(rng, distance, dist_b))
+            if relative:
+                graph.add_relative_pose(
+                    i - 1,
+                    i,
+                    _noisy(rng, distance * MP.cos(turn), dist_b),
+                    _noisy(rng, distance * MP.sin(turn), dist_b),
+                    _noisy(rng, turn, turn_b),
+                )
+            else:
+                graph.add_odometry(
+                    i - 1, i, _noisy(rng, turn, turn_b), _noisy(rng, distance, dist_b)
+                )
         for m in range(n_landmarks):
             x, y, _ = poses[i]
             if MP.hypot(exact_landmarks[m][0] - x, exact_landmarks[m][1] - y) <= 8.0:
@@ -192,6 +207,46 @@ def test_codac_inconsistency_is_found_by_cuikslam(
     seed: int, n_poses: int, n_landmarks: int
 ) -> None:
     world = random_world(seed, n_poses, n_landmarks, corrupt=True)
+    ours = propagate(world.graph)
+    _, _, consistent_c, _ = codac_propagate(world.graph)
+    if not consistent_c:
+        assert ours.status is Status.INCONSISTENT, "codac proved inconsistency, cuikslam did not"
+
+
+@SETTINGS
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n_poses=st.integers(5, 30),
+    n_landmarks=st.integers(2, 6),
+)
+def test_relative_poses_no_wider_than_codac(seed: int, n_poses: int, n_landmarks: int) -> None:
+    """The same check on worlds whose moves are relative poses (RELATIVE and ROTATION)."""
+    world = random_world(seed, n_poses, n_landmarks, relative=True)
+    ours = propagate(world.graph)
+    lo_c, hi_c, consistent_c, _ = codac_propagate(world.graph)
+    assert consistent_c, "codac proved a world with its truth inside inconsistent"
+    assert ours.status is Status.CONSISTENT
+    _assert_truth_inside(world, lo_c, hi_c, "codac")
+    _assert_truth_inside(world, ours.lo, ours.hi, "cuikslam")
+    w_ours = _widths(world, ours.lo, ours.hi)
+    w_codac = _widths(world, lo_c, hi_c)
+    wider = ~(w_ours <= w_codac * (1.0 + REL_SLACK) + ABS_SLACK)
+    assert not wider.any(), (
+        f"cuikslam wider than codac at coordinates {np.flatnonzero(wider)}: "
+        f"{w_ours[wider]} vs {w_codac[wider]}"
+    )
+
+
+@SETTINGS
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n_poses=st.integers(5, 30),
+    n_landmarks=st.integers(2, 6),
+)
+def test_relative_codac_inconsistency_is_found_by_cuikslam(
+    seed: int, n_poses: int, n_landmarks: int
+) -> None:
+    world = random_world(seed, n_poses, n_landmarks, corrupt=True, relative=True)
     ours = propagate(world.graph)
     _, _, consistent_c, _ = codac_propagate(world.graph)
     if not consistent_c:

@@ -1,10 +1,10 @@
 """The factor operators and the propagation never lose the truth.
 
-A random world (a few poses driven by odometry, a few landmarks) is drawn with its exact
-truth: the free quantities are floats, and every derived one (headings, positions,
-ranges, bearings) is computed in 1300-bit arithmetic. Every measurement is an interval
-containing the true value with random bounded errors; angles are given as unwrapped
-intervals (any copy ``+ 2πk``, sometimes wider than 2π). Then:
+A random world (a few poses driven by odometry or relative poses, a few landmarks) is
+drawn with its exact truth: the free quantities are floats, and every derived one
+(headings, positions, ranges, bearings) is computed in 1300-bit arithmetic. Every
+measurement is an interval containing the true value with random bounded errors; angles
+are given as unwrapped intervals (any copy ``+ 2πk``, sometimes wider than 2π). Then:
 
 (a) after every single application of a factor's operator (``narrow_factor``), in random
     order, over many passes, every box contains the truth (angles modulo 2π) and is a
@@ -123,6 +123,25 @@ def worlds(draw, max_poses: int = 5, max_landmarks: int = 3) -> World:
     )
     poses = [(x, y, t)]
     for i in range(1, n_poses):
+        if draw(st.booleans()):
+            # a relative pose: (dx, dy) in the frame of pose i - 1, then the heading change
+            dx, dy, dtheta = mpf(draw(coord)) / 4, mpf(draw(coord)) / 4, mpf(draw(turns))
+            x = x + dx * MP.cos(t) - dy * MP.sin(t)
+            y = y + dx * MP.sin(t) + dy * MP.cos(t)
+            t = t + dtheta
+            f = graph.add_relative_pose(
+                i - 1, i, interval(dx), interval(dy), angle_interval(dtheta)
+            )
+            table = graph.factor_table()
+            truth[int(table[f][ANGLE])], truth[int(table[f][LENGTH])] = dx, dy
+            truth[int(table[f + 1][ANGLE])] = dtheta
+            angles.add(int(table[f + 1][ANGLE]))
+            poses.append((x, y, t))
+            lines.append(
+                f"relative pose {i - 1}->{i}: dx {float(dx):.6g}, dy {float(dy):.6g}, "
+                f"dtheta {float(dtheta):.6g}"
+            )
+            continue
         turn, dist = mpf(draw(turns)), mpf(draw(dists))
         t = t + turn
         x, y = x + dist * MP.cos(t), y + dist * MP.sin(t)

@@ -16,9 +16,9 @@ from __future__ import annotations
 from collections import deque
 
 import numpy as np
-from codac import CtcPolar, Interval
+from codac import CtcPolar, Interval, atan2, cos, sin
 
-from cuikslam.graph.encoding import OBSERVATION, ODOMETRY
+from cuikslam.graph.encoding import OBSERVATION, ODOMETRY, RELATIVE, ROTATION
 from cuikslam.graph.kinematic_graph import KinematicGraph
 
 __all__ = ["codac_propagate"]
@@ -32,6 +32,48 @@ def _shrunk(old_lo: float, old_hi: float, new: Interval, rtol: float) -> bool:
     if old_w == float("inf"):
         return new_w < old_w
     return new_w < old_w * (1.0 - rtol)
+
+
+def _relative(
+    kind: int, row: list[int], dom: list[Interval], polar: CtcPolar
+) -> list[tuple[int, Interval]]:
+    """One application of a relative pose's factor with codac intervals.
+
+    ROTATION: tb = ta + dtheta, forward and backward. RELATIVE: D = (xb - xa, yb - ya) is
+    R(ta) (u, v): the rotation matrix both ways, then the polar form (u, v) = rho
+    (cos alpha, sin alpha), D = rho (cos(ta + alpha), sin(ta + alpha)) with two CtcPolar.
+    """
+    _, ixa, iya, ita, ixb, iyb, itb, iang, ilen = row
+    ta = Interval(dom[ita])
+    if kind == ROTATION:
+        tb, ang = Interval(dom[itb]), Interval(dom[iang])
+        tb &= ta + ang
+        ta &= tb - ang
+        ang &= tb - ta
+        return [(ita, ta), (itb, tb), (iang, ang)]
+    xa, ya, xb, yb = (Interval(dom[i]) for i in (ixa, iya, ixb, iyb))
+    u, v = Interval(dom[iang]), Interval(dom[ilen])
+    dx, dy = xb - xa, yb - ya
+    for _ in range(10):
+        c, s = cos(ta), sin(ta)
+        dx &= u * c - v * s
+        dy &= u * s + v * c
+        u &= dx * c + dy * s
+        v &= dy * c - dx * s
+        rho, alpha = Interval(0, float("inf")), atan2(v, u)
+        u, v, rho, alpha = polar.contract(u, v, rho, alpha)
+        phi = ta + alpha
+        dx, dy, rho, phi = polar.contract(dx, dy, rho, phi)
+        alpha &= phi - ta
+        ta &= phi - alpha
+        u, v, rho, alpha = polar.contract(u, v, rho, alpha)
+        if any(w.is_empty() for w in (dx, dy, u, v, ta)):
+            break
+    xb &= xa + dx
+    xa &= xb - dx
+    yb &= ya + dy
+    ya &= yb - dy
+    return [(ixa, xa), (iya, ya), (ita, ta), (ixb, xb), (iyb, yb), (iang, u), (ilen, v)]
 
 
 def codac_propagate(
@@ -62,6 +104,23 @@ def codac_propagate(
         queued[f] = False
         kind, ixa, iya, ita, ixb, iyb, itb, iang, ilen = table[f]
         applications += 1
+        if kind in (RELATIVE, ROTATION):
+            new = _relative(kind, table[f], dom, polar)
+            if any(v.is_empty() for _, v in new):
+                consistent = False
+                break
+            for var, value in new:
+                old = dom[var]
+                old_lo, old_hi = old.lb(), old.ub()
+                value &= old
+                dom[var] = value
+                if not _shrunk(old_lo, old_hi, value, rtol):
+                    continue
+                for g in reversed(factors_of[var]):
+                    if g != f and not queued[g]:
+                        queue.append(g)
+                        queued[g] = True
+            continue
         # fresh copies: codac's &= and contract() work in place
         xa, ya, ta = Interval(dom[ixa]), Interval(dom[iya]), Interval(dom[ita])
         xb, yb = Interval(dom[ixb]), Interval(dom[iyb])

@@ -9,6 +9,11 @@ Variables are two float arrays ``lo`` and ``hi``. A factor is one int64 row
   (xb - xa, yb - ya) = range (cos(ta + bearing), sin(ta + bearing)); ``angle`` = bearing,
   ``length`` = range. Range-only and bearing-only observations leave the missing
   quantity free ([-pi, pi] or [0, inf)).
+- ``RELATIVE``: the translation of a relative pose (log record ``relative_pose``), pose a
+  -> pose b (``tb = -1``): (xb - xa, yb - ya) = R(ta) (dx, dy), R(t) the rotation by t;
+  ``angle`` = dx and ``length`` = dy, the displacement in the frame of pose a.
+- ``ROTATION``: tb ≡ ta + angle (mod 2 pi) alone (only ``ta``, ``tb``, ``angle`` are used);
+  the heading change of a relative pose.
 - ``UNSEEN``: pose a did not see landmark b although it would have seen it within
   distance ``length`` and inside its field of view: |b - a| >= length, or the bearing of
   b lies in ``ta + angle``, where ``angle`` holds the bearings outside the field of view.
@@ -24,13 +29,15 @@ import numpy as np
 from cuikslam._jit import jit
 
 __all__ = [
-    "ANGLE", "KIND", "LENGTH", "NO_FACTOR", "N_SLOTS", "OBSERVATION", "ODOMETRY", "TA", "TB",
-    "UNSEEN", "XA", "XB", "YA", "YB", "link_factor",
+    "ANGLE", "KIND", "LENGTH", "NO_FACTOR", "N_SLOTS", "OBSERVATION", "ODOMETRY", "RELATIVE",
+    "ROTATION", "TA", "TB", "UNSEEN", "XA", "XB", "YA", "YB", "link_factor",
 ]  # fmt: skip
 
 ODOMETRY = 0
 OBSERVATION = 1
 UNSEEN = 2
+RELATIVE = 3
+ROTATION = 4
 NO_FACTOR = -1
 """Kind (and variable indices) of an unused row in a preallocated factor table."""
 

@@ -18,7 +18,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cuikslam.graph.encoding import N_SLOTS, OBSERVATION, ODOMETRY, link_factor
+from cuikslam.graph.encoding import (
+    N_SLOTS,
+    OBSERVATION,
+    ODOMETRY,
+    RELATIVE,
+    ROTATION,
+    link_factor,
+)
 from cuikslam.interval._periodic import periodic_meet
 from cuikslam.interval._rounding import PI_HI
 from cuikslam.log.records import (
@@ -28,6 +35,7 @@ from cuikslam.log.records import (
     Observation,
     Odometry,
     PosePrior,
+    RelativePose,
 )
 
 __all__ = ["ANY_ANGLE", "ANY_LENGTH", "KinematicGraph"]
@@ -112,6 +120,28 @@ class KinematicGraph:
         self.factor_lines.append(line)
         return len(self._factors) - 1
 
+    def add_relative_pose(
+        self,
+        source: int,
+        target: int,
+        dx: Bounds,
+        dy: Bounds,
+        dtheta: Bounds,
+        line: int = 0,
+    ) -> int:
+        """Pose ``target`` at (``dx``, ``dy``, ``dtheta``) in the frame of pose ``source``.
+
+        Two factors: ``RELATIVE`` (the translation) and ``ROTATION`` (the heading change);
+        returns the index of the first.
+        """
+        a = self.add_pose(source)
+        b = self.add_pose(target)
+        m = self._new_vars([dx, dy, dtheta])
+        self._factors.append((RELATIVE, a, a + 1, a + 2, b, b + 1, -1, m, m + 1))
+        self._factors.append((ROTATION, -1, -1, a + 2, -1, -1, b + 2, m + 2, -1))
+        self.factor_lines.extend((line, line))
+        return len(self._factors) - 2
+
     def add_observation(
         self,
         pose: int,
@@ -143,6 +173,10 @@ class KinematicGraph:
             elif isinstance(record, Odometry):
                 graph.add_odometry(
                     record.source, record.target, record.turn, record.distance, record.line
+                )
+            elif isinstance(record, RelativePose):
+                graph.add_relative_pose(
+                    record.source, record.target, record.dx, record.dy, record.dtheta, record.line
                 )
             elif isinstance(record, LandmarkPrior):
                 graph.add_landmark_prior(record.landmark, record.x, record.y, record.landmark_class)

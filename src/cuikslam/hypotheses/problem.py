@@ -28,6 +28,8 @@ from cuikslam.graph.encoding import (
     N_SLOTS,
     OBSERVATION,
     ODOMETRY,
+    RELATIVE,
+    ROTATION,
     TA,
     TB,
     UNSEEN,
@@ -38,7 +40,14 @@ from cuikslam.graph.encoding import (
 )
 from cuikslam.interval._periodic import periodic_meet
 from cuikslam.interval._rounding import PI_HI, TWO_PI_HI
-from cuikslam.log.records import LandmarkPrior, Log, Observation, Odometry, PosePrior
+from cuikslam.log.records import (
+    LandmarkPrior,
+    Log,
+    Observation,
+    Odometry,
+    PosePrior,
+    RelativePose,
+)
 
 __all__ = ["Decision", "Problem", "observation_rows", "unseen_rows"]
 
@@ -176,6 +185,11 @@ def build_problem(log: Log) -> Problem:
             a, c = pose(record.source), pose(record.target)
             m = b.new(record.turn, _length(record.distance))
             rows.append((ODOMETRY, a, a + 1, a + 2, c, c + 1, c + 2, m, m + 1))
+        elif isinstance(record, RelativePose):
+            a, c = pose(record.source), pose(record.target)
+            m = b.new(record.dx, record.dy, record.dtheta)
+            rows.append((RELATIVE, a, a + 1, a + 2, c, c + 1, -1, m, m + 1))
+            rows.append((ROTATION, -1, -1, a + 2, -1, -1, c + 2, m + 2, -1))
         elif isinstance(record, Observation):
             a = pose(record.pose)
             bearing = (-PI_HI, PI_HI) if record.bearing is None else record.bearing

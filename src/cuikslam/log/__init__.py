@@ -10,6 +10,7 @@ from cuikslam.log.records import (
     Odometry,
     PosePrior,
     Record,
+    RelativePose,
     SensorModel,
 )
 from cuikslam.log.writer import log_to_lines, write_log_file
@@ -23,6 +24,7 @@ __all__ = [
     "Odometry",
     "PosePrior",
     "Record",
+    "RelativePose",
     "SensorModel",
     "log_to_lines",
     "parse_log_lines",

@@ -21,6 +21,7 @@ from cuikslam.log.records import (
     Odometry,
     PosePrior,
     Record,
+    RelativePose,
     SensorModel,
 )
 
@@ -119,6 +120,21 @@ def _odometry(f: dict[str, Any], line: int) -> Odometry:
     )
 
 
+def _relative_pose(f: dict[str, Any], line: int) -> RelativePose:
+    source = _pose_id(f["from"], "from")
+    target = _pose_id(f["to"], "to")
+    if source == target:
+        raise Problem(f"relative pose from pose {source} to itself; from and to must differ")
+    return RelativePose(
+        source=source,
+        target=target,
+        dx=_interval(f["dx"], "dx"),
+        dy=_interval(f["dy"], "dy"),
+        dtheta=_interval(f["dtheta"], "dtheta"),
+        line=line,
+    )
+
+
 def _observation(f: dict[str, Any], line: int) -> Observation:
     raw_range, raw_bearing, raw_landmark = (f.get(k) for k in ("range", "bearing", "landmark"))
     if raw_range is None and raw_bearing is None:
@@ -167,6 +183,7 @@ def _sensor(f: dict[str, Any], line: int) -> SensorModel:
 RECORD_TYPES: dict[str, _Schema] = {
     "prior": _Schema(("pose", "x", "y", "theta"), (), _prior),
     "odometry": _Schema(("from", "to", "turn", "distance"), (), _odometry),
+    "relative_pose": _Schema(("from", "to", "dx", "dy", "dtheta"), (), _relative_pose),
     "observation": _Schema(("pose", "class"), ("range", "bearing", "landmark"), _observation),
     "landmark": _Schema(("id", "class", "x", "y"), (), _landmark),
     "sensor": _Schema((), ("max_range", "fov", "nearest_margin"), _sensor),

@@ -22,6 +22,7 @@ from cuikslam.log.records import (
     Odometry,
     PosePrior,
     Record,
+    RelativePose,
     SensorModel,
 )
 
@@ -140,6 +141,14 @@ def _check_order(records: list[Record], path: str) -> None:
                     fail(
                         record,
                         f"odometry from pose {source}, which no prior or earlier odometry reaches",
+                    )
+                reached.add(target)
+            case RelativePose(source=source, target=target):
+                if source not in reached:
+                    fail(
+                        record,
+                        f"relative pose from pose {source}, which no prior or earlier odometry "
+                        "reaches",
                     )
                 reached.add(target)
             case Observation(pose=pose, landmark=landmark):

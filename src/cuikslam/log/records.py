@@ -19,6 +19,7 @@ __all__ = [
     "Odometry",
     "PosePrior",
     "Record",
+    "RelativePose",
     "SensorModel",
 ]
 
@@ -49,6 +50,23 @@ class Odometry:
     target: int
     turn: Bounds
     distance: Bounds
+    line: int = 0
+
+
+@dataclass(frozen=True)
+class RelativePose:
+    """The pose ``target`` in the frame of pose ``source``: a move that turns while it drives.
+
+    (x, y)_target = (x, y)_source + R(theta_source) (dx, dy) and
+    theta_target = theta_source + dtheta, where R(t) rotates by t: ``dx`` is the
+    displacement along the source heading, ``dy`` to its left.
+    """
+
+    source: int
+    target: int
+    dx: Bounds
+    dy: Bounds
+    dtheta: Bounds
     line: int = 0
 
 
@@ -97,7 +115,7 @@ class SensorModel:
     line: int = 0
 
 
-Record = PosePrior | Odometry | Observation | LandmarkPrior | SensorModel
+Record = PosePrior | Odometry | RelativePose | Observation | LandmarkPrior | SensorModel
 
 
 @dataclass
@@ -114,6 +132,10 @@ class Log:
     @property
     def odometry(self) -> list[Odometry]:
         return [r for r in self.records if isinstance(r, Odometry)]
+
+    @property
+    def relative_poses(self) -> list[RelativePose]:
+        return [r for r in self.records if isinstance(r, RelativePose)]
 
     @property
     def observations(self) -> list[Observation]:
@@ -136,7 +158,7 @@ class Log:
         for r in self.records:
             if isinstance(r, PosePrior | Observation):
                 ids.add(r.pose)
-            elif isinstance(r, Odometry):
+            elif isinstance(r, Odometry | RelativePose):
                 ids.update((r.source, r.target))
         return sorted(ids)
 

@@ -22,6 +22,7 @@ from cuikslam.log.records import (
     Odometry,
     PosePrior,
     Record,
+    RelativePose,
     SensorModel,
 )
 
@@ -79,6 +80,15 @@ def _record_to_json(record: Record) -> dict[str, Any]:
                 "to": operator.index(record.target),
                 "turn": _bounds(record.turn),
                 "distance": _bounds(record.distance),
+            }
+        case RelativePose():
+            return {
+                "type": "relative_pose",
+                "from": operator.index(record.source),
+                "to": operator.index(record.target),
+                "dx": _bounds(record.dx),
+                "dy": _bounds(record.dy),
+                "dtheta": _bounds(record.dtheta),
             }
         case Observation():
             fields: dict[str, Any] = {

@@ -15,6 +15,8 @@ from cuikslam.graph.encoding import (
     LENGTH,
     NO_FACTOR,
     ODOMETRY,
+    RELATIVE,
+    ROTATION,
     TA,
     TB,
     UNSEEN,
@@ -27,6 +29,7 @@ from cuikslam.interval._arith import add, meet, sub
 from cuikslam.interval._periodic import periodic_meet
 from cuikslam.interval._rounding import INF
 from cuikslam.narrowing._polar import polar_contract, shrunk
+from cuikslam.narrowing._relative import relative_contract
 from cuikslam.narrowing._unseen import unseen_contract
 
 EMPTY_FACTOR = -1
@@ -107,6 +110,10 @@ def narrow_factor_memo(
         return 0
     if kind == UNSEEN:
         return _narrow_unseen(lo, hi, row, rtol)
+    if kind == ROTATION:
+        return _narrow_rotation(lo, hi, row, rtol)
+    if kind == RELATIVE:
+        return _narrow_relative(lo, hi, row, rtol, max_rounds, memory)
     ixa, iya, ita, ixb, iyb = row[XA], row[YA], row[TA], row[XB], row[YB]
     itb, iang, ilen = row[TB], row[ANGLE], row[LENGTH]
     xalo, xahi, yalo, yahi, talo, tahi = lo[ixa], hi[ixa], lo[iya], hi[iya], lo[ita], hi[ita]
@@ -181,6 +188,83 @@ def narrow_factor_memo(
         mask |= _store(lo, hi, itb, tblo, tbhi, rtol) << 5
     mask |= _store(lo, hi, iang, anglo, anghi, rtol) << 6
     mask |= _store(lo, hi, ilen, lenlo, lenhi, rtol) << 7
+    return mask
+
+
+@jit
+def _narrow_rotation(lo: np.ndarray, hi: np.ndarray, row: np.ndarray, rtol: float) -> int:
+    """The ROTATION factor: tb ≡ ta + angle (mod 2 pi)."""
+    ita, itb, iang = row[TA], row[TB], row[ANGLE]
+    talo, tahi, tblo, tbhi, anglo, anghi = _rotate(
+        lo[ita], hi[ita], lo[itb], hi[itb], lo[iang], hi[iang]
+    )
+    if talo > tahi or tblo > tbhi or anglo > anghi:
+        return EMPTY_FACTOR
+    mask = _store(lo, hi, ita, talo, tahi, rtol) << 2
+    mask |= _store(lo, hi, itb, tblo, tbhi, rtol) << 5
+    mask |= _store(lo, hi, iang, anglo, anghi, rtol) << 6
+    return mask
+
+
+@jit
+def _narrow_relative(
+    lo: np.ndarray,
+    hi: np.ndarray,
+    row: np.ndarray,
+    rtol: float,
+    max_rounds: int,
+    memory: np.ndarray,
+) -> int:
+    """The RELATIVE factor: (xb - xa, yb - ya) = R(ta) (dx, dy); dx, dy in the angle and
+    length slots. ``memory`` keeps the world offset (xb - xa, yb - ya) and its direction."""
+    ixa, iya, ita, ixb, iyb = row[XA], row[YA], row[TA], row[XB], row[YB]
+    idx, idy = row[ANGLE], row[LENGTH]
+    xalo, xahi, yalo, yahi, talo, tahi = lo[ixa], hi[ixa], lo[iya], hi[iya], lo[ita], hi[ita]
+    xblo, xbhi, yblo, ybhi = lo[ixb], hi[ixb], lo[iyb], hi[iyb]
+    ulo, uhi, vlo, vhi = lo[idx], hi[idx], lo[idy], hi[idy]
+    converged = False
+    for _ in range(max_rounds):
+        before = (xalo, xahi, yalo, yahi, talo, tahi, xblo, xbhi, yblo, ybhi, ulo, uhi, vlo, vhi)
+        dxlo, dxhi = sub(xblo, xbhi, xalo, xahi)
+        dxlo, dxhi = meet(dxlo, dxhi, memory[0], memory[1])
+        dylo, dyhi = sub(yblo, ybhi, yalo, yahi)
+        dylo, dyhi = meet(dylo, dyhi, memory[2], memory[3])
+        if dxlo > dxhi or dylo > dyhi:
+            return EMPTY_FACTOR
+        d_before = (dxlo, dxhi, dylo, dyhi)
+        dxlo, dxhi, dylo, dyhi, talo, tahi, ulo, uhi, vlo, vhi, plo, phi = relative_contract(
+            dxlo, dxhi, dylo, dyhi, talo, tahi, ulo, uhi, vlo, vhi, memory[4], memory[5],
+            rtol, max_rounds,
+        )  # fmt: skip
+        if dxlo > dxhi:
+            return EMPTY_FACTOR
+        memory[0], memory[1], memory[2], memory[3] = dxlo, dxhi, dylo, dyhi
+        memory[4], memory[5] = plo, phi
+        xalo, xahi, xblo, xbhi = _translate(xalo, xahi, xblo, xbhi, dxlo, dxhi)
+        yalo, yahi, yblo, ybhi = _translate(yalo, yahi, yblo, ybhi, dylo, dyhi)
+        if xalo > xahi or yalo > yahi or xblo > xbhi or yblo > ybhi:
+            return EMPTY_FACTOR
+        if not (
+            shrunk(before[0], before[1], xalo, xahi, rtol)
+            or shrunk(before[2], before[3], yalo, yahi, rtol)
+            or shrunk(before[4], before[5], talo, tahi, rtol)
+            or shrunk(before[6], before[7], xblo, xbhi, rtol)
+            or shrunk(before[8], before[9], yblo, ybhi, rtol)
+            or shrunk(before[10], before[11], ulo, uhi, rtol)
+            or shrunk(before[12], before[13], vlo, vhi, rtol)
+            or shrunk(d_before[0], d_before[1], dxlo, dxhi, rtol)
+            or shrunk(d_before[2], d_before[3], dylo, dyhi, rtol)
+        ):
+            converged = True
+            break
+    mask = 0 if converged else NOT_AT_FIXPOINT
+    mask |= _store(lo, hi, ixa, xalo, xahi, rtol) << 0
+    mask |= _store(lo, hi, iya, yalo, yahi, rtol) << 1
+    mask |= _store(lo, hi, ita, talo, tahi, rtol) << 2
+    mask |= _store(lo, hi, ixb, xblo, xbhi, rtol) << 3
+    mask |= _store(lo, hi, iyb, yblo, ybhi, rtol) << 4
+    mask |= _store(lo, hi, idx, ulo, uhi, rtol) << 6
+    mask |= _store(lo, hi, idy, vlo, vhi, rtol) << 7
     return mask
 
 

@@ -1,0 +1,121 @@
+"""The ``relative_pose`` record: reading, writing, and its narrowing against turn-then-drive.
+
+Soundness on random worlds with exact truth is in ``test_factor_soundness.py`` (its worlds
+mix odometry and relative poses) and the comparison with codac in
+``test_cross_check_codac.py``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from _exact import MP, mpf
+from cuikslam.graph.kinematic_graph import KinematicGraph
+from cuikslam.log import (
+    LogFormatError,
+    RelativePose,
+    parse_log_lines,
+    read_log_file,
+    write_log_file,
+)
+from cuikslam.narrowing.propagation import Status, propagate
+from worlds import down, up
+
+PRIOR = '{"type": "prior", "pose": 0, "x": [0, 0], "y": [0, 0], "theta": [0, 0]}'
+MOVE = (
+    '{"type": "relative_pose", "from": 0, "to": 1, "dx": [1, 1.1], "dy": [-0.1, 0.2],'
+    ' "dtheta": [0.1, 0.2]}'
+)
+
+
+def test_round_trip(tmp_path):
+    log = parse_log_lines([PRIOR, MOVE])
+    (move,) = log.relative_poses
+    assert move == RelativePose(0, 1, (1.0, 1.1), (-0.1, 0.2), (0.1, 0.2), line=2)
+    assert log.pose_ids == [0, 1]
+    path = tmp_path / "rel.jsonl"
+    write_log_file(log, path)
+    assert read_log_file(path).records == log.records
+
+
+@pytest.mark.parametrize(
+    ("line", "message"),
+    [
+        (MOVE.replace('"to": 1', '"to": 0'), "relative pose from pose 0 to itself"),
+        (MOVE.replace('"from": 0', '"from": 5'), "relative pose from pose 5, which no prior"),
+        (MOVE.replace(', "dtheta": [0.1, 0.2]', ""), 'missing field "dtheta"'),
+        (MOVE.replace('"dy"', '"dz"'), 'unknown field "dz"'),
+        (
+            MOVE.replace("[1, 1.1]", "[1.1, 1]"),
+            'field "dx" is the interval [1.1, 1.0] with lo > hi',
+        ),
+    ],
+)
+def test_bad_records_are_refused(line, message):
+    with pytest.raises(LogFormatError) as err:
+        parse_log_lines([PRIOR, line], path="trip.jsonl")
+    assert str(err.value).startswith("trip.jsonl:2: ")
+    assert message in str(err.value)
+
+
+def test_a_pose_reached_by_a_relative_pose_can_be_used():
+    later = (
+        '{"type": "relative_pose", "from": 1, "to": 2, "dx": [1, 1], "dy": [0, 0],'
+        ' "dtheta": [0, 0]}'
+    )
+    assert parse_log_lines([PRIOR, MOVE, later]).pose_ids == [0, 1, 2]
+
+
+def _chain(
+    prior: tuple[float, float, float], moves: list[tuple[float, float]], relative: bool
+) -> np.ndarray:
+    """Pose boxes of a chain of exact (turn, distance) moves from a prior box centred at 0,
+    logged as odometry or as relative poses (dx, dy rounded outward to a float box)."""
+    graph = KinematicGraph()
+    wx, wy, wt = prior
+    graph.add_pose_prior(0, (-wx, wx), (-wy, wy), (-wt, wt))
+    for i, (turn, distance) in enumerate(moves, start=1):
+        if relative:
+            dx = mpf(distance) * MP.cos(mpf(turn))
+            dy = mpf(distance) * MP.sin(mpf(turn))
+            dtheta = (turn, turn)
+            graph.add_relative_pose(i - 1, i, (down(dx), up(dx)), (down(dy), up(dy)), dtheta)
+        else:
+            graph.add_odometry(i - 1, i, (turn, turn), (distance, distance))
+    result = propagate(graph)
+    assert result.status is Status.CONSISTENT
+    return graph.pose_boxes(result.lo, result.hi)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    prior=st.tuples(st.floats(0.0, 1.0), st.floats(0.0, 1.0), st.floats(0.0, 0.5)),
+    moves=st.lists(st.tuples(st.floats(-1.0, 1.0), st.floats(0.1, 5.0)), min_size=1, max_size=8),
+)
+def test_as_tight_as_turn_then_drive(prior, moves):
+    """A relative pose that is a turn then a drive narrows the poses as tightly as the
+    odometry factor (up to the outward rounding of its dx, dy and the fixpoint's rtol)."""
+    odometry = _chain(prior, moves, relative=False)
+    relative = _chain(prior, moves, relative=True)
+    w_odo = np.diff(odometry, axis=-1)[..., 0]
+    w_rel = np.diff(relative, axis=-1)[..., 0]
+    assert np.all(w_rel <= w_odo * 1.01 + 1e-9), (w_rel, w_odo)
+
+
+def test_heading_recovered_from_two_known_positions():
+    """Backward: known positions of both poses fix the heading of the first one."""
+    graph = KinematicGraph()
+    graph.add_pose_prior(0, (1.0, 1.0), (2.0, 2.0), (-4.0, 4.0))
+    graph.add_pose_prior(1, (1.7, 1.7), (3.0, 3.0), (-4.0, 4.0))
+    graph.add_relative_pose(0, 1, (0.99, 1.01), (0.69, 0.71), (0.09, 0.11))
+    result = propagate(graph)
+    assert result.status is Status.CONSISTENT
+    t0 = graph.pose_boxes(result.lo, result.hi)[0, 2]
+    truth = math.atan2(1.0, 0.7) - math.atan2(0.7, 1.0)
+    assert t0[0] <= truth <= t0[1]
+    assert t0[1] - t0[0] < 0.05
