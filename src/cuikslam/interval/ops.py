@@ -21,6 +21,9 @@ array([3.0419, 3.2413])
 
 from __future__ import annotations
 
+import threading
+from collections.abc import Callable
+
 import numpy as np
 
 from cuikslam._fpu import guarded
@@ -66,6 +69,25 @@ _BWD_BINARY = [f"void({_F}, {_F}, {_F}, {_F}, {_F})"]
 _BWD_UNARY = [f"void({_F}, {_F}, {_F})"]
 
 
+_KERNELS: dict[str, tuple[Callable, list[str], str]] = {}
+"""Each array operation's Python kernel, signatures and layout, compiled on first use."""
+_COMPILING = threading.Lock()
+
+
+def _kernel(signatures: list[str], layout: str) -> Callable[[Callable], Callable]:
+    """Register a generalized ufunc, compiled (or loaded from numba's cache) on first use.
+
+    Loading all of them at import took half a second, paid by every command, though a
+    solve at level ``hull`` uses none of them and level ``lp`` a third.
+    """
+
+    def register(func: Callable) -> Callable:
+        _KERNELS[func.__name__] = (func, signatures, layout)
+        return func
+
+    return register
+
+
 def interval(lo: np.typing.ArrayLike, hi: np.typing.ArrayLike | None = None) -> np.ndarray:
     """Stack lower and upper bounds into an interval array (``hi`` defaults to ``lo``: points)."""
     lo = np.asarray(lo, dtype=np.float64)
@@ -93,139 +115,155 @@ def contains(x: np.ndarray, value: np.typing.ArrayLike) -> np.ndarray:
     return (x[..., 0] <= value) & (value <= x[..., 1])
 
 
-@gufunc(_BINARY, "(n),(n)->(n)")
+@_kernel(_BINARY, "(n),(n)->(n)")
 def intersect(a, b, out):
     out[0], out[1] = _arith.meet(a[0], a[1], b[0], b[1])
 
 
-@gufunc(_BINARY, "(n),(n)->(n)")
+@_kernel(_BINARY, "(n),(n)->(n)")
 def hull(a, b, out):
     out[0], out[1] = _arith.join(a[0], a[1], b[0], b[1])
 
 
-@gufunc(_UNARY, "(n)->(n)")
+@_kernel(_UNARY, "(n)->(n)")
 def neg(a, out):
     out[0], out[1] = _arith.neg(a[0], a[1])
 
 
-@gufunc(_BINARY, "(n),(n)->(n)")
+@_kernel(_BINARY, "(n),(n)->(n)")
 def add(a, b, out):
     out[0], out[1] = _arith.add(a[0], a[1], b[0], b[1])
 
 
-@gufunc(_BINARY, "(n),(n)->(n)")
+@_kernel(_BINARY, "(n),(n)->(n)")
 def sub(a, b, out):
     out[0], out[1] = _arith.sub(a[0], a[1], b[0], b[1])
 
 
-@gufunc(_BINARY, "(n),(n)->(n)")
+@_kernel(_BINARY, "(n),(n)->(n)")
 def mul(a, b, out):
     out[0], out[1] = _arith.mul(a[0], a[1], b[0], b[1])
 
 
-@gufunc(_BINARY, "(n),(n)->(n)")
+@_kernel(_BINARY, "(n),(n)->(n)")
 def div(a, b, out):
     out[0], out[1] = _arith.div(a[0], a[1], b[0], b[1])
 
 
-@gufunc(_UNARY, "(n)->(n)")
+@_kernel(_UNARY, "(n)->(n)")
 def sqr(a, out):
     out[0], out[1] = _arith.sqr(a[0], a[1])
 
 
-@gufunc(_UNARY, "(n)->(n)")
+@_kernel(_UNARY, "(n)->(n)")
 def sqrt(a, out):
     out[0], out[1] = _arith.sqrt(a[0], a[1])
 
 
-@gufunc(_UNARY, "(n)->(n)")
+@_kernel(_UNARY, "(n)->(n)")
 def cos(a, out):
     out[0], out[1] = _periodic.cos(a[0], a[1])
 
 
-@gufunc(_UNARY, "(n)->(n)")
+@_kernel(_UNARY, "(n)->(n)")
 def sin(a, out):
     out[0], out[1] = _periodic.sin(a[0], a[1])
 
 
-@gufunc(_BINARY, "(n),(n)->(n)")
+@_kernel(_BINARY, "(n),(n)->(n)")
 def atan2(y, x, out):
     out[0], out[1] = _periodic.atan2(y[0], y[1], x[0], x[1])
 
 
-@gufunc(_BINARY, "(n),(n)->(n)")
+@_kernel(_BINARY, "(n),(n)->(n)")
 def periodic_intersect(x, a, out):
     out[0], out[1] = _periodic.periodic_meet(x[0], x[1], a[0], a[1])
 
 
-@gufunc(_BWD_BINARY, "(n),(n),(n)->(n),(n)")
+@_kernel(_BWD_BINARY, "(n),(n),(n)->(n),(n)")
 def bwd_add(z, x, y, x_out, y_out):
     x_out[0], x_out[1], y_out[0], y_out[1] = _arith.bwd_add(z[0], z[1], x[0], x[1], y[0], y[1])
 
 
-@gufunc(_BWD_BINARY, "(n),(n),(n)->(n),(n)")
+@_kernel(_BWD_BINARY, "(n),(n),(n)->(n),(n)")
 def bwd_sub(z, x, y, x_out, y_out):
     x_out[0], x_out[1], y_out[0], y_out[1] = _arith.bwd_sub(z[0], z[1], x[0], x[1], y[0], y[1])
 
 
-@gufunc(_BWD_BINARY, "(n),(n),(n)->(n),(n)")
+@_kernel(_BWD_BINARY, "(n),(n),(n)->(n),(n)")
 def bwd_mul(z, x, y, x_out, y_out):
     x_out[0], x_out[1], y_out[0], y_out[1] = _arith.bwd_mul(z[0], z[1], x[0], x[1], y[0], y[1])
 
 
-@gufunc(_BWD_UNARY, "(n),(n)->(n)")
+@_kernel(_BWD_UNARY, "(n),(n)->(n)")
 def bwd_sqr(z, x, x_out):
     x_out[0], x_out[1] = _arith.bwd_sqr(z[0], z[1], x[0], x[1])
 
 
-@gufunc(_BWD_UNARY, "(n),(n)->(n)")
+@_kernel(_BWD_UNARY, "(n),(n)->(n)")
 def bwd_sqrt(z, x, x_out):
     x_out[0], x_out[1] = _arith.bwd_sqrt(z[0], z[1], x[0], x[1])
 
 
-@gufunc(_BWD_UNARY, "(n),(n)->(n)")
+@_kernel(_BWD_UNARY, "(n),(n)->(n)")
 def bwd_cos(z, x, x_out):
     x_out[0], x_out[1] = _periodic.bwd_cos(z[0], z[1], x[0], x[1])
 
 
-@gufunc(_BWD_UNARY, "(n),(n)->(n)")
+@_kernel(_BWD_UNARY, "(n),(n)->(n)")
 def bwd_sin(z, x, x_out):
     x_out[0], x_out[1] = _periodic.bwd_sin(z[0], z[1], x[0], x[1])
 
 
-@gufunc([f"void({_F}, {_F}, {_F}, {_F}, {_F}, {_F})"], "(n),(n),(n)->(n),(n),(n)")
+@_kernel([f"void({_F}, {_F}, {_F}, {_F}, {_F}, {_F})"], "(n),(n),(n)->(n),(n),(n)")
 def angle_of(y, x, theta, y_out, x_out, theta_out):
     (x_out[0], x_out[1], y_out[0], y_out[1], theta_out[0], theta_out[1]) = _periodic.arg_contract(
         x[0], x[1], y[0], y[1], theta[0], theta[1]
     )
 
 
-_DOCS = {
-    intersect: "Intersection of interval arrays.",
-    hull: "Interval hull (smallest interval containing both).",
-    neg: "Negation.",
-    add: "Sum, rounded outward.",
-    sub: "Difference, rounded outward.",
-    mul: "Product, rounded outward (0 * inf = 0).",
-    div: "Hull of a / b over b != 0 (relational division; unbounded when 0 is inside b).",
-    sqr: "Square, rounded outward.",
-    sqrt: "Square root of the non-negative part, rounded outward.",
-    cos: "Cosine of an unwrapped angle interval, rounded outward.",
-    sin: "Sine of an unwrapped angle interval, rounded outward.",
-    atan2: "Principal angle atan2(y, x) in [-pi, pi] (with its cut); prefer angle_of.",
-    periodic_intersect: "Hull of x ∩ (a + 2 pi Z): angles of x congruent to an angle of a.",
-    bwd_add: "Narrow (x, y) under z = x + y; returns (x', y').",
-    bwd_sub: "Narrow (x, y) under z = x - y; returns (x', y').",
-    bwd_mul: "Narrow (x, y) under z = x * y; returns (x', y').",
-    bwd_sqr: "Narrow x under z = x**2; returns x'.",
-    bwd_sqrt: "Narrow x under z = sqrt(x); returns x'.",
-    bwd_cos: "Narrow the angle x under z = cos(x); returns x'.",
-    bwd_sin: "Narrow the angle x under z = sin(x); returns x'.",
-    angle_of: (
+_DOCS: dict[str, str] = {
+    "intersect": "Intersection of interval arrays.",
+    "hull": "Interval hull (smallest interval containing both).",
+    "neg": "Negation.",
+    "add": "Sum, rounded outward.",
+    "sub": "Difference, rounded outward.",
+    "mul": "Product, rounded outward (0 * inf = 0).",
+    "div": "Hull of a / b over b != 0 (relational division; unbounded when 0 is inside b).",
+    "sqr": "Square, rounded outward.",
+    "sqrt": "Square root of the non-negative part, rounded outward.",
+    "cos": "Cosine of an unwrapped angle interval, rounded outward.",
+    "sin": "Sine of an unwrapped angle interval, rounded outward.",
+    "atan2": "Principal angle atan2(y, x) in [-pi, pi] (with its cut); prefer angle_of.",
+    "periodic_intersect": "Hull of x ∩ (a + 2 pi Z): angles of x congruent to an angle of a.",
+    "bwd_add": "Narrow (x, y) under z = x + y; returns (x', y').",
+    "bwd_sub": "Narrow (x, y) under z = x - y; returns (x', y').",
+    "bwd_mul": "Narrow (x, y) under z = x * y; returns (x', y').",
+    "bwd_sqr": "Narrow x under z = x**2; returns x'.",
+    "bwd_sqrt": "Narrow x under z = sqrt(x); returns x'.",
+    "bwd_cos": "Narrow the angle x under z = cos(x); returns x'.",
+    "bwd_sin": "Narrow the angle x under z = sin(x); returns x'.",
+    "angle_of": (
         "Narrow (y, x, theta) under theta ≡ angle of (x, y) mod 2 pi, theta unwrapped: atan2"
         " without its cut. Returns (y', x', theta')."
     ),
 }
-for _func, _doc in _DOCS.items():
-    _func.__doc__ = _doc
-    globals()[_func.__name__] = guarded(_func)
+for _name in _KERNELS:  # module attributes only through __getattr__: compiled on first use
+    del globals()[_name]
+
+
+def __getattr__(name: str) -> Callable:
+    """The array operation ``name``, compiled on first use (then a plain attribute)."""
+    if name not in _KERNELS:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    with _COMPILING:
+        if name not in globals():
+            func, signatures, layout = _KERNELS[name]
+            compiled = gufunc(signatures, layout)(func)
+            compiled.__doc__ = _DOCS[name]
+            globals()[name] = guarded(compiled)
+    return globals()[name]
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_KERNELS})
