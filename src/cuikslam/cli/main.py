@@ -372,13 +372,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=_cmd_simulate)
 
-    p = sub.add_parser(
+    p_import = sub.add_parser(
         "import",
         help="convert a real dataset to a log and its ground truth",
         description="Convert a window of a real dataset to a log and, beside it, NAME.truth.json.",
     )
-    p.add_argument("dataset", choices=["lost-in-the-woods"], help="which dataset")
-    p.add_argument("file", help="the dataset file (lost-in-the-woods: dataset2.mat)")
+    datasets = p_import.add_subparsers(dest="dataset", required=True, metavar="DATASET")
+    from cuikslam.cli.mrclam import add_mrclam_parser
+
+    add_mrclam_parser(datasets)
+    p = datasets.add_parser(
+        "lost-in-the-woods",
+        help="a window of UTIAS Lost in the Woods (dataset2.mat)",
+        description="Convert a window of Lost in the Woods to a log and NAME.truth.json.",
+    )
+    p.add_argument("file", help="the dataset file (dataset2.mat)")
     p.add_argument("-o", "--output", required=True, help="log file to write (.jsonl)")
     p.add_argument("--start", type=int, default=2770, help="first sample (default %(default)s)")
     p.add_argument("--steps", type=_positive_int, default=450, help="samples (default %(default)s)")

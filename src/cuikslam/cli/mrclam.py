@@ -1,0 +1,117 @@
+"""``cuikslam import mrclam DIR --robot N``: a MRCLAM robot's run as a log and its truth."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+
+from cuikslam.cli._common import CommandError
+
+__all__ = ["add_mrclam_parser"]
+
+
+def _finite(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: need a finite number >= 0")
+    return value
+
+
+def _positive(text: str) -> float:
+    value = _finite(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: need a number > 0")
+    return value
+
+
+def add_mrclam_parser(datasets: argparse._SubParsersAction) -> None:
+    """The ``mrclam`` choice of ``cuikslam import`` (imports nothing heavy: every command
+    builds this parser)."""
+    p = datasets.add_parser(
+        "mrclam",
+        help="a robot of a UTIAS MRCLAM dataset (1-9)",
+        description="Convert one robot's run of a MRCLAM dataset folder to a log and, beside "
+        "it, NAME.truth.json (Vicon interpolated at each pose; landmark truth). The default "
+        "bounds were measured on Dataset 6 and do not cover its gross outliers.",
+    )
+    p.add_argument("folder", help="the dataset folder (Barcodes.dat, Robot1_Odometry.dat, ...)")
+    p.add_argument("--robot", type=int, required=True, choices=range(1, 6), help="robot 1-5")
+    p.add_argument("-o", "--output", required=True, help="log file to write (.jsonl)")
+    p.add_argument(
+        "--start", type=_finite, default=0.0, help="window start [s after the first command]"
+    )
+    p.add_argument("--duration", type=_positive, help="window length [s] (default: to the end)")
+    p.add_argument(
+        "--keyframe-gap",
+        type=_positive,
+        default=1.0,
+        help="longest time between poses [s]; poses also at every image (default %(default)s)",
+    )
+    p.add_argument(
+        "--robots",
+        choices=["drop", "class"],
+        default="drop",
+        help="sightings of other robots: drop them (default) or keep them as class 'robot', "
+        "each its own landmark",
+    )
+    p.add_argument("--unknown", action="store_true", help="leave out landmark ids")
+    for name, unit in (
+        ("range", "m"),
+        ("bearing", "rad"),
+        ("velocity", "m/s"),
+        ("turn-rate", "rad/s"),
+    ):
+        p.add_argument(
+            f"--{name}-bound",
+            type=_finite,
+            help=f"{name} error bound [{unit}] (default: measured on Dataset 6, see "
+            "cuikslam.datasets.mrclam.MrclamBounds)",
+        )
+    p.add_argument(
+        "--truth-gap",
+        type=_positive,
+        default=0.25,
+        help="longest Vicon gap [s] a pose's truth is interpolated across (default %(default)s)",
+    )
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=_cmd_import_mrclam)
+
+
+def _cmd_import_mrclam(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
+    from cuikslam.cli.main import _log_and_truth_outputs, _write_log_and_truth
+    from cuikslam.datasets.mrclam import MrclamBounds, read_mrclam
+
+    out, truth_out = _log_and_truth_outputs(args.output)
+    given = {
+        "range": args.range_bound,
+        "bearing": args.bearing_bound,
+        "velocity": args.velocity_bound,
+        "turn_rate": args.turn_rate_bound,
+    }
+    bounds = replace(MrclamBounds(), **{k: v for k, v in given.items() if v is not None})
+    try:
+        log, truth, report = read_mrclam(
+            args.folder,
+            args.robot,
+            start=args.start,
+            duration=args.duration,
+            keyframe_gap=args.keyframe_gap,
+            robots=args.robots,
+            unknown=args.unknown,
+            bounds=bounds,
+            truth_gap=args.truth_gap,
+        )
+    except ValueError as err:
+        if type(err) is not ValueError:  # a LogFormatError names its file: main prints it
+            raise
+        raise CommandError(f"import mrclam: {err}") from None
+    _write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)
+    if not args.quiet:
+        print(report.describe(), file=sys.stderr)
+    return 0
