@@ -8,6 +8,7 @@ file and line. Cross-record checks (which poses are reached, landmark classes) l
 from __future__ import annotations
 
 import difflib
+import functools
 import json
 import math
 from collections.abc import Callable
@@ -38,7 +39,7 @@ class _Schema:
     optional: tuple[str, ...]
     build: Callable[[dict[str, Any], int], Record]
 
-    @property
+    @functools.cached_property
     def allowed(self) -> tuple[str, ...]:
         return (*self.required, *self.optional, "time")
 
@@ -67,6 +68,15 @@ def _finite(value: int | float, name: str) -> float:
 
 def _interval(value: Any, name: str, *, non_negative: bool = False) -> Bounds:
     """``[lo, hi]`` with finite numbers, ``lo <= hi`` (and ``lo >= 0`` if asked)."""
+    if type(value) is list and len(value) == 2:  # the common case, decided at once
+        lo, hi = value
+        if (
+            type(lo) is float
+            and type(hi) is float
+            and -math.inf < lo <= hi < math.inf  # False for NaN
+            and not (non_negative and lo < 0)
+        ):
+            return (lo, hi)
     if not (isinstance(value, list) and len(value) == 2 and all(map(_is_number, value))):
         raise Problem(
             f'field "{name}" must be an interval [lo, hi] of two numbers, got {_show(value)}'

@@ -13,6 +13,7 @@ import os
 from collections.abc import Iterable
 from typing import Any
 
+from cuikslam._json import loads_object
 from cuikslam.log._fields import Problem, record_from_json
 from cuikslam.log.errors import LogFormatError
 from cuikslam.log.records import (
@@ -100,6 +101,12 @@ def _unique_keys(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
 
 
 def _parse_line(raw: str, number: int, path: str) -> Record:
+    value = loads_object(raw)  # a fast decoder's object, when it is the strict one's too
+    if value is not None:
+        try:
+            return record_from_json(value, number)
+        except Problem as problem:
+            raise LogFormatError(path, number, str(problem)) from problem
     try:
         try:
             value = json.loads(raw, parse_constant=_reject_constant, object_pairs_hook=_unique_keys)

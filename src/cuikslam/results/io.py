@@ -44,6 +44,7 @@ import numpy as np
 
 from cuikslam import __version__
 from cuikslam._atomic import atomic_write_text
+from cuikslam._json import dumps
 from cuikslam.log.errors import LogFormatError
 from cuikslam.results.solution import Hypothesis, Solution
 
@@ -94,7 +95,29 @@ def solution_to_json(solution: Solution) -> dict[str, Any]:
 
 def write_result_file(solution: Solution, path: str | os.PathLike[str]) -> None:
     """Write the JSON result of ``solution`` to ``path`` (atomically)."""
-    atomic_write_text(path, json.dumps(solution_to_json(solution), indent=1) + "\n")
+    text = dumps(solution_to_json(solution), finite=_finite(solution))
+    atomic_write_text(path, text + "\n")
+
+
+def _finite(solution: Solution) -> bool:
+    """No NaN (nor infinity) among the floats the result document holds outside the
+    bounds (which write infinities as null): witnesses, statistics, timings, the pose hull."""
+    hull = (solution.correspondence or {}).get("pose_hull")
+    if hull is not None and not np.isfinite(np.asarray(hull, dtype=float)).all():
+        return False
+    for value in (*solution.statistics.values(), *solution.timings.values()):
+        if not (
+            isinstance(value, int | str) or (isinstance(value, float) and math.isfinite(value))
+        ):
+            return False
+    for h in solution.hypotheses:
+        if np.isnan(h.poses).any() or np.isnan(h.landmarks).any():
+            return False
+        if h.witness is not None and not all(
+            np.isfinite(np.asarray(v, dtype=float)).all() for v in h.witness.values()
+        ):
+            return False
+    return True
 
 
 def _read_bounds(value: Any, where: str) -> tuple[float, float]:
