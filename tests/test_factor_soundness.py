@@ -165,6 +165,14 @@ def worlds(draw, max_poses: int = 5, max_landmarks: int = 3) -> World:
         i = draw(st.integers(0, n_poses - 1))
         name, lx, ly = landmarks[draw(st.integers(0, n_landmarks - 1))]
         px, py, pt = poses[i]
+        offset = None
+        if draw(st.booleans()):
+            # the sensor sits at (ox, oy), turned by ot, in the frame of the robot pose
+            ox, oy, ot = mpf(draw(coord)) / 16, mpf(draw(coord)) / 16, mpf(draw(turns))
+            offset = (interval(ox), interval(oy), angle_interval(ot))
+            px = px + MP.cos(pt) * ox - MP.sin(pt) * oy
+            py = py + MP.sin(pt) * ox + MP.cos(pt) * oy
+            pt = pt + ot
         rng = MP.sqrt((lx - px) ** 2 + (ly - py) ** 2)
         if rng == 0:
             continue
@@ -175,10 +183,17 @@ def worlds(draw, max_poses: int = 5, max_landmarks: int = 3) -> World:
             name,
             range=None if kind == "bearing-only" else interval(rng, derived=True),
             bearing=None if kind == "range-only" else angle_interval(bearing, derived=True),
+            offset=offset,
         )
         row = graph.factor_table()[f]
         truth[int(row[ANGLE])], truth[int(row[LENGTH])] = bearing, rng
         angles.add(int(row[ANGLE]))
+        if offset is not None:
+            o = int(row[1]) - 3  # the offset's variables, then the sensor's pose
+            truth[o], truth[o + 1], truth[o + 2] = ox, oy, ot
+            truth[o + 3], truth[o + 4], truth[o + 5] = px, py, pt
+            angles.update((o + 2, o + 5))
+            kind += " from an offset sensor"
         lines.append(f"{kind} {i}->{name}: range {float(rng):.6g}, bearing {float(bearing):.6g}")
     for name, lx, ly in landmarks:
         if name in graph.landmark_ids:

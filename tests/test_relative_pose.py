@@ -119,3 +119,45 @@ def test_heading_recovered_from_two_known_positions():
     truth = math.atan2(1.0, 0.7) - math.atan2(0.7, 1.0)
     assert t0[0] <= truth <= t0[1]
     assert t0[1] - t0[0] < 0.05
+
+
+OFFSET_OBS = (
+    '{"type": "observation", "pose": 0, "class": "post", "range": [2.0, 2.1],'
+    ' "bearing": [0.1, 0.2], "landmark": "P0", "offset_x": [0.219, 0.219]}'
+)
+
+
+def test_observation_offset_round_trip(tmp_path):
+    log = parse_log_lines([PRIOR, OFFSET_OBS])
+    (obs,) = log.observations
+    assert obs.offset == ((0.219, 0.219), (0.0, 0.0), (0.0, 0.0))
+    write_log_file(log, tmp_path / "o.jsonl")
+    assert read_log_file(tmp_path / "o.jsonl").records == log.records
+
+
+@pytest.mark.parametrize("sensor_first", [True, False])
+def test_offsets_and_negative_information_are_refused(sensor_first):
+    sensor = '{"type": "sensor", "max_range": 8}'
+    lines = [PRIOR, sensor, OFFSET_OBS] if sensor_first else [PRIOR, OFFSET_OBS, sensor]
+    with pytest.raises(LogFormatError, match="observation offsets cannot be combined"):
+        parse_log_lines(lines, path="trip.jsonl")
+
+
+def test_offset_observation_places_the_landmark_from_the_sensor():
+    """A laser 0.219 m ahead of an exactly known pose: the landmark box is the sensor's
+    range-bearing box around the laser, not around the robot centre."""
+    log = parse_log_lines([PRIOR.replace('"theta": [0, 0]', '"theta": [0.5, 0.5]'), OFFSET_OBS])
+    graph = KinematicGraph.from_log(log)
+    result = propagate(graph)
+    assert result.status is Status.CONSISTENT
+    (box,) = graph.landmark_boxes(result.lo, result.hi)
+    laser = np.array([0.219 * math.cos(0.5), 0.219 * math.sin(0.5)])
+    corners = [
+        laser + r * np.array([math.cos(0.5 + b), math.sin(0.5 + b)])
+        for r in (2.0, 2.1)
+        for b in (0.1, 0.2)
+    ]
+    lo, hi = np.min(corners, axis=0), np.max(corners, axis=0)
+    assert np.all(box[:, 0] <= lo) and np.all(hi <= box[:, 1])
+    # the hull of the annular sector is within a few mm of its corners' box
+    assert np.all(box[:, 0] >= lo - 0.01) and np.all(box[:, 1] <= hi + 0.01)

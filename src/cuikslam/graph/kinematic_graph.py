@@ -150,15 +150,30 @@ class KinematicGraph:
         bearing: Bounds | None = None,
         landmark_class: str = "",
         line: int = 0,
+        offset: tuple[Bounds, Bounds, Bounds] | None = None,
     ) -> int:
-        """``landmark`` seen from ``pose`` at ``range`` and ``bearing`` (either may be None)."""
+        """``landmark`` seen from ``pose`` at ``range`` and ``bearing`` (either may be None).
+
+        With ``offset``, the sensor's pose ``(dx, dy, dtheta)`` in the frame of the robot
+        pose, the sensor's pose S becomes three variables: a relative pose from the robot
+        pose to S (``RELATIVE`` and ``ROTATION`` factors), and the ``OBSERVATION`` from S.
+        Returns the index of the ``OBSERVATION`` factor.
+        """
         a = self.add_pose(pose)
         b = self.add_landmark(landmark, landmark_class)
         bearing_b = ANY_ANGLE if bearing is None else bearing
         range_b = ANY_LENGTH if range is None else (max(0.0, range[0]), range[1])
         m = self._new_vars([bearing_b, range_b])
-        self._factors.append((OBSERVATION, a, a + 1, a + 2, b, b + 1, -1, m, m + 1))
-        self.factor_lines.append(line)
+        if offset is None:
+            self._factors.append((OBSERVATION, a, a + 1, a + 2, b, b + 1, -1, m, m + 1))
+            self.factor_lines.append(line)
+            return len(self._factors) - 1
+        o = self._new_vars([*offset, *[(-math.inf, math.inf)] * 3])
+        s = o + 3
+        self._factors.append((RELATIVE, a, a + 1, a + 2, s, s + 1, -1, o, o + 1))
+        self._factors.append((ROTATION, -1, -1, a + 2, -1, -1, s + 2, o + 2, -1))
+        self._factors.append((OBSERVATION, s, s + 1, s + 2, b, b + 1, -1, m, m + 1))
+        self.factor_lines.extend((line, line, line))
         return len(self._factors) - 1
 
     @classmethod
@@ -196,6 +211,7 @@ class KinematicGraph:
                     record.bearing,
                     record.landmark_class,
                     record.line,
+                    record.offset,
                 )
                 observation_index += 1
         return graph

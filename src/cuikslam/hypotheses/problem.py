@@ -191,6 +191,11 @@ def build_problem(log: Log) -> Problem:
             rows.append((RELATIVE, a, a + 1, a + 2, c, c + 1, -1, m, m + 1))
             rows.append((ROTATION, -1, -1, a + 2, -1, -1, c + 2, m + 2, -1))
         elif isinstance(record, Observation):
+            if record.offset is not None:
+                raise ValueError(
+                    f"{log.path}:{record.line}: observation offsets are supported with known "
+                    "correspondence only (give every observation its landmark id)"
+                )
             a = pose(record.pose)
             bearing = (-PI_HI, PI_HI) if record.bearing is None else record.bearing
             m = b.new(bearing, _length(record.range))

@@ -145,10 +145,18 @@ def _relative_pose(f: dict[str, Any], line: int) -> RelativePose:
     )
 
 
+_OFFSET_FIELDS = ("offset_x", "offset_y", "offset_theta")
+
+
 def _observation(f: dict[str, Any], line: int) -> Observation:
     raw_range, raw_bearing, raw_landmark = (f.get(k) for k in ("range", "bearing", "landmark"))
     if raw_range is None and raw_bearing is None:
         raise Problem('observation has neither "range" nor "bearing"; give at least one')
+    offset = None
+    if any(f.get(k) is not None for k in _OFFSET_FIELDS):
+        offset = tuple(
+            (0.0, 0.0) if f.get(k) is None else _interval(f[k], k) for k in _OFFSET_FIELDS
+        )
     return Observation(
         pose=_pose_id(f["pose"], "pose"),
         landmark_class=_name(f["class"], "class"),
@@ -156,6 +164,7 @@ def _observation(f: dict[str, Any], line: int) -> Observation:
         bearing=None if raw_bearing is None else _interval(raw_bearing, "bearing"),
         landmark=None if raw_landmark is None else _name(raw_landmark, "landmark"),
         line=line,
+        offset=offset,
     )
 
 
@@ -194,7 +203,9 @@ RECORD_TYPES: dict[str, _Schema] = {
     "prior": _Schema(("pose", "x", "y", "theta"), (), _prior),
     "odometry": _Schema(("from", "to", "turn", "distance"), (), _odometry),
     "relative_pose": _Schema(("from", "to", "dx", "dy", "dtheta"), (), _relative_pose),
-    "observation": _Schema(("pose", "class"), ("range", "bearing", "landmark"), _observation),
+    "observation": _Schema(
+        ("pose", "class"), ("range", "bearing", "landmark", *_OFFSET_FIELDS), _observation
+    ),
     "landmark": _Schema(("id", "class", "x", "y"), (), _landmark),
     "sensor": _Schema((), ("max_range", "fov", "nearest_margin"), _sensor),
 }

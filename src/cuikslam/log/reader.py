@@ -126,6 +126,11 @@ def _check_order(records: list[Record], path: str) -> None:
     landmark_seen: dict[str, tuple[str, int]] = {}
     scan_seen: dict[tuple[int, str], int] = {}
     sensor_line: int | None = None
+    offset_line: int | None = None
+    no_offsets = (
+        "observation offsets cannot be combined with a sensor record: its negative "
+        "information is modelled from the robot's pose, not from the sensor's"
+    )
 
     def fail(record: Record, problem: str) -> None:
         raise LogFormatError(path, record.line, problem)
@@ -159,6 +164,10 @@ def _check_order(records: list[Record], path: str) -> None:
                     )
                 reached.add(target)
             case Observation(pose=pose, landmark=landmark):
+                if record.offset is not None:
+                    if sensor_line is not None:
+                        fail(record, f"{no_offsets} (line {sensor_line})")
+                    offset_line = offset_line or record.line
                 if pose not in reached:
                     fail(
                         record,
@@ -179,4 +188,6 @@ def _check_order(records: list[Record], path: str) -> None:
             case SensorModel():
                 if sensor_line is not None:
                     fail(record, f"a second sensor record; the first is on line {sensor_line}")
+                if offset_line is not None:
+                    fail(record, f"{no_offsets} (line {offset_line})")
                 sensor_line = record.line

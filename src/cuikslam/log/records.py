@@ -77,6 +77,9 @@ class Observation:
     ``range`` or ``bearing`` may be ``None`` (bearing-only / range-only sensors).
     ``landmark`` names the landmark when the correspondence is known, else ``None``.
     Observations made from the same pose form one scan: they see distinct landmarks.
+    ``offset``, when given, is the sensor's pose ``(dx, dy, dtheta)`` in the frame of the
+    robot pose (a laser mounted ahead of the centre, or the robot's motion since the
+    keyframe); range and bearing are then measured from that sensor pose.
     """
 
     pose: int
@@ -85,6 +88,7 @@ class Observation:
     bearing: Bounds | None
     landmark: str | None = None
     line: int = 0
+    offset: tuple[Bounds, Bounds, Bounds] | None = None
 
 
 @dataclass(frozen=True)

@@ -102,6 +102,11 @@ def _record_to_json(record: Record) -> dict[str, Any]:
                 fields["bearing"] = _bounds(record.bearing)
             if record.landmark is not None:
                 fields["landmark"] = str(record.landmark)
+            if record.offset is not None:
+                for name, bounds in zip(
+                    ("offset_x", "offset_y", "offset_theta"), record.offset, strict=True
+                ):
+                    fields[name] = _bounds(bounds)
             return fields
         case LandmarkPrior():
             return {

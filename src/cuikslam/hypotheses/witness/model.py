@@ -194,6 +194,8 @@ class HypothesisModel(Starts):
                 add_landmark(record.landmark, record.landmark_class)
                 landmark_priors.append(record)
             elif isinstance(record, Observation):
+                if record.offset is not None and "observation offsets" not in self.problems:
+                    self.problems.append("observation offsets")  # not modelled: no witness
                 i = add_pose(record.pose)
                 j = add_landmark(str(assignment[k]), record.landmark_class)
                 k += 1
