@@ -18,6 +18,7 @@ from __future__ import annotations
 import itertools
 import math
 import os
+from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -30,6 +31,7 @@ __all__ = [
     "MrclamTables",
     "interpolate_poses",
     "keyframe_times",
+    "lagged_command_hulls",
     "read_mrclam_tables",
     "read_table",
     "read_table_lines",
@@ -184,7 +186,7 @@ def keyframe_times(scan_times: np.ndarray, start: float, end: float, gap: float)
     times between them that no two consecutive poses are more than ``gap`` apart.
 
     >>> keyframe_times(np.array([0.5, 0.5, 3.0]), 0.0, 3.0, 1.0).tolist()
-    [0.0, 0.5, 1.5, 2.25, 3.0]
+    [0.0, 0.5, 1.3333333333333335, 2.166666666666667, 3.0]
     """
     if not gap > 0:
         raise ValueError(f"the keyframe gap must be positive, got {gap}")
@@ -199,7 +201,7 @@ def keyframe_times(scan_times: np.ndarray, start: float, end: float, gap: float)
 
 
 def velocity_steps(odometry: np.ndarray, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
-    """The commanded steps that move the robot from time ``t0`` to ``t1``.
+    """The commands that move the robot from time ``t0`` to ``t1``, as steps.
 
     A command holds from its time stamp until the next one (the last one until ``t1``);
     the steps are the commands clipped to ``[t0, t1]``. ``t0`` must not precede the
@@ -207,8 +209,8 @@ def velocity_steps(odometry: np.ndarray, t0: float, t1: float) -> tuple[np.ndarr
 
     Returns
     -------
-    commands : numpy.ndarray
-        (n, 2) commanded forward and angular velocity of each step.
+    rows : numpy.ndarray
+        (n,) the row of ``odometry`` each step follows.
     times : numpy.ndarray
         (n + 1,) the step boundaries, from ``t0`` to ``t1`` (no zero-length step).
     """
@@ -219,9 +221,49 @@ def velocity_steps(odometry: np.ndarray, t0: float, t1: float) -> tuple[np.ndarr
     last = int(np.searchsorted(t, t1, side="left"))
     bounds = np.concatenate(([t0], t[first + 1 : last], [t1]))
     keep = np.diff(bounds) > 0
-    commands = odometry[first:last, 1:3][keep]
+    rows = np.arange(first, last)[keep]
     times = np.concatenate((bounds[:-1][keep], [t1]))
-    return commands, times
+    return rows, times
+
+
+def lagged_command_hulls(odometry: np.ndarray, lag: float) -> np.ndarray:
+    """For each command, the hull of the commands in force during the ``lag`` seconds
+    before it and while it holds: what the robot may still be doing while it holds.
+
+    Returns an (n, 4) array of forward velocity lo, hi and angular velocity lo, hi. Row
+    i is the hull over the commands j <= i whose span reaches past ``t_i - lag`` (a
+    command's span lasts until the next time stamp).
+
+    >>> odo = np.array([[0.0, 1.0, 0.0], [1.0, 2.0, 0.5], [1.5, 0.5, -0.5], [3.0, 0.5, -0.5]])
+    >>> lagged_command_hulls(odo, 1.0).tolist()[2:]
+    [[0.5, 2.0, -0.5, 0.5], [0.5, 0.5, -0.5, -0.5]]
+    """
+    if not lag >= 0:
+        raise ValueError(f"the lag must be >= 0, got {lag}")
+    t = odometry[:, 0]
+    starts = np.searchsorted(t, t - lag, side="right") - 1
+    starts = np.maximum(starts, 0)
+    out = np.empty((len(t), 4))
+    for column, (lo, hi) in ((1, (0, 1)), (2, (2, 3))):
+        values = odometry[:, column]
+        out[:, lo] = _sliding(values, starts, np.less_equal)
+        out[:, hi] = _sliding(values, starts, np.greater_equal)
+    return out
+
+
+def _sliding(values: np.ndarray, starts: np.ndarray, keeps: np.ufunc) -> np.ndarray:
+    """Sliding-window extreme of ``values[starts[i] : i + 1]`` (``starts`` non-decreasing):
+    the minimum with ``np.less_equal``, the maximum with ``np.greater_equal``."""
+    out = np.empty_like(values)
+    window: deque[int] = deque()
+    for i, value in enumerate(values.tolist()):
+        while window and keeps(value, values[window[-1]]):
+            window.pop()
+        window.append(i)
+        while window[0] < starts[i]:
+            window.popleft()
+        out[i] = values[window[0]]
+    return out
 
 
 def interpolate_poses(

@@ -1,11 +1,10 @@
 """How the MRCLAM importer turns commanded velocities into one move between poses.
 
 :func:`relative_pose_motion` is the importer's default
-:data:`~cuikslam.datasets.mrclam.MotionModel`: the commands between two poses become one
+:data:`~cuikslam.datasets.mrclam.MotionModel`: the steps between two poses become one
 ``relative_pose`` record (the later pose in the frame of the earlier one), enclosed by
-:func:`cuikslam.motion.compose_steps` from the intervals ``v ± velocity`` and
-``ω ± turn_rate`` of each command, then widened by the slack of
-:class:`~cuikslam.datasets.mrclam.MrclamBounds` (``move_xy``, ``move_theta``). Every
+:func:`cuikslam.motion.compose_steps` from each step's velocity intervals, then widened
+by the slack of :class:`~cuikslam.datasets.mrclam.MrclamBounds` (``move_xy``, ``move_theta``). Every
 bound is rounded outward by the interval kernel.
 """
 
@@ -13,7 +12,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from cuikslam import interval as ia
 from cuikslam.interval._arith import add
 from cuikslam.log.records import Record, RelativePose
 from cuikslam.motion import compose_steps
@@ -22,17 +20,14 @@ __all__ = ["relative_pose_motion"]
 
 
 def relative_pose_motion(
-    source: int, target: int, commands: np.ndarray, times: np.ndarray, bounds
+    source: int, target: int, v: np.ndarray, omega: np.ndarray, times: np.ndarray, bounds
 ) -> list[Record]:
     """One ``relative_pose`` record from pose ``source`` to ``target`` (a MotionModel).
 
-    ``commands`` holds the commanded (v, ω) of each step, ``times`` the n + 1 step
+    ``v`` and ``omega`` hold each step's velocity intervals, ``times`` the n + 1 step
     boundaries; ``bounds`` is a :class:`~cuikslam.datasets.mrclam.MrclamBounds`.
     """
-    v, w = commands[:, 0], commands[:, 1]
-    v_box = ia.add(ia.interval(v, v), np.array([-bounds.velocity, bounds.velocity]))
-    w_box = ia.add(ia.interval(w, w), np.array([-bounds.turn_rate, bounds.turn_rate]))
-    dx, dy, dtheta = compose_steps(v_box, w_box, times)
+    dx, dy, dtheta = compose_steps(v, omega, times)
     xy, th = bounds.move_xy, bounds.move_theta
     return [
         RelativePose(
