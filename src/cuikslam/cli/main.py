@@ -160,7 +160,8 @@ def _write_log_and_truth(log, truth, out: Path, truth_out: Path, *, quiet: bool)
     write_output(truth_out, lambda: write_truth_file(truth, truth_out))
     if not quiet:
         print(
-            f"wrote {out} ({len(log.records)} records: {len(log.odometry)} odometry, "
+            f"wrote {out} ({len(log.records)} records: "
+            f"{len(log.odometry) + len(log.relative_poses)} moves, "
             f"{len(log.observations)} observations) and its ground truth {truth_out}",
             file=sys.stderr,
         )
@@ -171,7 +172,16 @@ def _cmd_import(args: argparse.Namespace) -> int:
 
     out, truth_out = _log_and_truth_outputs(args.output)
     log, truth = read_lost_in_the_woods(
-        args.file, start=args.start, steps=args.steps, stride=args.stride, unknown=not args.known
+        args.file,
+        start=args.start,
+        steps=args.steps,
+        keyframe=args.keyframe,
+        unknown=not args.known,
+        speed_bound=args.speed_bound,
+        turn_rate_bound=args.turn_rate_bound,
+        range_bound=args.range_bound,
+        bearing_bound=args.bearing_bound,
+        every_observation=not args.keyframe_observations,
     )
     _write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)
     return EXIT_OK
@@ -291,6 +301,16 @@ _positive_int = _int_at_least(1)
 _non_negative_int = _int_at_least(0)
 
 
+def _positive_float(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (value > 0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="cuikslam",
@@ -388,10 +408,44 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("file", help="the dataset file (dataset2.mat)")
     p.add_argument("-o", "--output", required=True, help="log file to write (.jsonl)")
-    p.add_argument("--start", type=int, default=2770, help="first sample (default %(default)s)")
-    p.add_argument("--steps", type=_positive_int, default=450, help="samples (default %(default)s)")
-    p.add_argument("--stride", type=_positive_int, default=10, help="samples per pose (default 10)")
+    p.add_argument("--start", type=int, default=0, help="first sample (default 0)")
+    p.add_argument(
+        "--steps", type=_positive_int, default=None, help="samples (default: to the end)"
+    )
+    p.add_argument(
+        "--keyframe",
+        "--stride",
+        type=_positive_int,
+        default=10,
+        help="samples per pose; the odometry between is composed (default 10)",
+    )
     p.add_argument("--known", action="store_true", help="keep landmark ids (known correspondence)")
+    p.add_argument(
+        "--speed-bound",
+        type=_positive_float,
+        default=None,
+        help="per-sample speed error bound [m/s] (default 3 sd of the file's v_var)",
+    )
+    p.add_argument(
+        "--turn-rate-bound",
+        type=_positive_float,
+        default=None,
+        help="per-sample turn-rate error bound [rad/s] (default 3 sd of the file's om_var)",
+    )
+    p.add_argument(
+        "--range-bound", type=_positive_float, default=0.16, help="range bound [m] (default 0.16)"
+    )
+    p.add_argument(
+        "--bearing-bound",
+        type=_positive_float,
+        default=0.15,
+        help="bearing bound [rad] (default 0.15)",
+    )
+    p.add_argument(
+        "--keyframe-observations",
+        action="store_true",
+        help="keep only the observations made at a keyframe sample",
+    )
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=_cmd_import)
 

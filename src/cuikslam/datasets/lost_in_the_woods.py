@@ -1,29 +1,32 @@
 """Importer for the UTIAS "Lost in the Woods" dataset (``dataset2.mat``).
 
 A wheeled robot drives among 17 identical posts and measures them with a laser
-rangefinder; Vicon gives the true robot poses and post positions.  The importer turns a
-window of the recording into a cuikslam :class:`~cuikslam.log.records.Log` and its
-:class:`~cuikslam.simulate.truth.GroundTruth`.
+rangefinder; Vicon gives the true robot poses and post positions. The importer turns the
+whole recording, or a window of it, into a cuikslam :class:`~cuikslam.log.records.Log`
+and its :class:`~cuikslam.simulate.truth.GroundTruth`. Nothing in the log comes from
+Vicon except the prior box on the first pose that has a Vicon value; Vicon gaps only
+leave poses without truth.
 
-Modelling choices (each one keeps the Vicon truth inside every interval):
+Modelling (each interval holds the truth whenever the stated bounds do):
 
-* **Odometry.**  ``stride`` wheel-odometry samples (10 Hz) are merged into one step with
-  turn ``T = Σ ω·dt`` and signed distance ``D = Σ v·dt``.  The robot turns *while* it
-  drives, so its chord does not point along its final heading, which a single
-  turn-then-drive record would require.  Each merged step therefore becomes two records
-  through an auxiliary pose: pose ``2i`` → ``2i+1`` turns by about ``T/2 + drive_offset``
-  (plus π when driving backwards) and drives ``|D|`` along the chord; pose ``2i+1`` →
-  ``2i+2`` turns the rest (about ``T/2 − drive_offset``) and drives 0.  ``drive_offset``
-  is the measured angle between the Vicon heading and the direction the wheels drive
-  (about −0.079 rad in this dataset).  Both turns get ± ``turn_bound`` and the distance
-  ± ``distance_bound``.  The true auxiliary pose is the next Vicon position with the
-  chord direction as heading.
-* **Observations.**  The rangefinder sits ``d`` ahead of the robot centre.  Each reading
-  ``[r ± range_bound] × [b ± bearing_bound]`` is converted to the exact range/bearing
-  box of the post as seen from the robot centre (the conversion is monotone on the box
-  when ``r > d``, so the corners give the hull), widened by 1e-9 for rounding.
-* **Prior.**  The first kept pose gets a ±1 cm, ±0.01 rad box around its Vicon pose.
-  No :class:`~cuikslam.log.records.SensorModel` is written: the sensor misses posts.
+* **Keyframes.** One pose every ``keyframe`` samples (10 Hz). The wheel odometry between
+  two keyframes, speed ``v ± speed_bound`` and turn rate ``om ± turn_rate_bound`` per
+  sample, is composed into one ``relative_pose`` by :func:`cuikslam.motion.compose_steps`
+  (sound for a speed and turn rate that vary inside their bounds during a sample). The
+  robot drives along its Vicon heading plus ``drive_angle`` (the tracker is mounted about
+  0.08 rad askew: a measured constant of the dataset, with a margin).
+* **Sensor offset.** The laser sits ``d`` (0.219 m) ahead of the robot centre. An
+  observation made at sample j, between keyframes k and k + 1, carries the sensor's pose
+  in the frame of keyframe k: the composed motion from k to j, then the mount
+  (``offset_x``, ``offset_y``, ``offset_theta`` of the log format). Its range and
+  bearing are the reading ± ``range_bound`` and ± ``bearing_bound``.
+* **Bounds.** By default, the speed and turn-rate bounds are three standard deviations
+  of the noise variances stored in the file (``v_var``, ``om_var``), and the range and
+  bearing bounds lie just above the largest errors the dataset's documentation states
+  (about 15.5 cm and 0.14 rad).
+* **Prior.** The first sample with a Vicon value is a keyframe, and its pose gets a
+  ±1 cm, ±0.01 rad box around it; when the window starts in a Vicon gap, the first pose
+  gets a box 20 m around the posts. No sensor record is written: the laser misses posts.
 """
 
 from __future__ import annotations
@@ -34,117 +37,148 @@ import os
 import numpy as np
 
 from cuikslam.log.errors import LogFormatError
-from cuikslam.log.records import Bounds, Log, Observation, Odometry, PosePrior
+from cuikslam.log.records import Bounds, Log, Observation, PosePrior, Record, RelativePose
+from cuikslam.motion import compose_relative, compose_steps
 from cuikslam.simulate.truth import GroundTruth
 
 __all__ = ["read_lost_in_the_woods"]
 
-_VARIABLES = ("t", "v", "om", "r", "b", "l", "x_true", "y_true", "th_true", "true_valid", "d")
-_EPS = 1e-9
+_VARIABLES = (
+    "t", "v", "om", "r", "b", "l", "x_true", "y_true", "th_true", "true_valid", "d",
+    "v_var", "om_var",
+)  # fmt: skip
 DRIVE_OFFSET = -0.079
 """Angle [rad] from the Vicon heading to the direction the wheels drive (measured)."""
+DRIVE_MARGIN = 0.03
+"""Half-width [rad] of the drive-angle interval around ``DRIVE_OFFSET``."""
+RANGE_BOUND = 0.16
+"""Range error bound [m]: the documented largest error is about 15.5 cm."""
+BEARING_BOUND = 0.15
+"""Bearing error bound [rad]: the documented largest error is about 0.14 rad."""
+ARENA_MARGIN = 20.0
+"""Margin [m] around the posts of the box given to the first pose when it has no Vicon."""
+PRIOR_BOUND = (0.01, 0.01)
+"""Half-widths of the prior box on the first pose with truth: position [m], heading [rad]."""
 
 
 def read_lost_in_the_woods(
     path: str | os.PathLike[str],
     *,
-    start: int = 2770,
-    steps: int = 450,
-    stride: int = 10,
+    start: int = 0,
+    steps: int | None = None,
+    keyframe: int = 10,
     unknown: bool = True,
-    odometry_bound: tuple[float, float] = (0.12, 0.06),
-    range_bound: float = 0.20,
-    bearing_bound: float = 0.15,
-    drive_offset: float = DRIVE_OFFSET,
+    speed_bound: float | None = None,
+    turn_rate_bound: float | None = None,
+    range_bound: float = RANGE_BOUND,
+    bearing_bound: float = BEARING_BOUND,
+    drive_angle: Bounds = (DRIVE_OFFSET - DRIVE_MARGIN, DRIVE_OFFSET + DRIVE_MARGIN),
+    every_observation: bool = True,
 ) -> tuple[Log, GroundTruth]:
-    """Import samples ``start .. start+steps`` of ``dataset2.mat``, one pose per ``stride``.
+    """Import samples ``start .. start + steps`` of ``dataset2.mat`` (default: to the end).
 
-    Returns the log (landmark ids ``P0..P16`` unless ``unknown``) and the ground truth.
+    Parameters
+    ----------
+    keyframe : int
+        Samples per pose (the first sample with a Vicon pose is a keyframe too). Fewer
+        poses solve faster; each keyframe's motion interval widens (see
+        :mod:`cuikslam.motion`).
+    unknown : bool
+        Drop the landmark ids (``P0..P16``): unknown correspondence.
+    speed_bound, turn_rate_bound : float, optional
+        Per-sample odometry error bounds [m/s, rad/s]; default three standard deviations
+        of the file's ``v_var`` and ``om_var``.
+    range_bound, bearing_bound : float
+        Observation error bounds [m, rad].
+    drive_angle : (float, float)
+        Angle from the heading to the direction the wheels drive [rad].
+    every_observation : bool
+        Keep the observations made between keyframes (from an offset sensor pose); with
+        False only those made at a keyframe sample are kept.
+
+    Returns
+    -------
+    (Log, GroundTruth)
+        The truth lists the poses whose sample has a valid Vicon pose.
 
     Raises
     ------
     LogFormatError
         If the file cannot be read, lacks a variable, or the window is empty, leaves the
-        recording, or holds a sample without a valid Vicon pose.
+        recording, or has no valid Vicon pose (the prior needs one).
     """
     data = _load(path)
-    t = data["t"].ravel()
+    t = data["t"].ravel().astype(float)
     n_samples = t.size
-    if stride < 1 or steps < stride:
-        raise LogFormatError(path, None, f"need stride >= 1 and steps >= stride ({steps=})")
-    end = start + (steps // stride) * stride
+    end = n_samples - 1 if steps is None else start + steps
+    if keyframe < 1 or end <= start:
+        raise LogFormatError(path, None, f"need keyframe >= 1 and steps >= 1 ({steps=})")
     if start < 0 or end >= n_samples:
         raise LogFormatError(
             path, None, f"window {start}..{end} leaves the recording (0..{n_samples - 1})"
         )
-    valid = data["true_valid"].ravel()[start : end + 1]
-    if not np.all(valid):
-        bad = start + int(np.flatnonzero(valid == 0)[0])
+    valid = data["true_valid"].ravel() != 0
+    first_truth = start + int(np.argmax(valid[start : end + 1]))
+    if not valid[first_truth]:
         raise LogFormatError(
-            path, None, f"no valid Vicon pose at sample {bad}: choose another window"
+            path, None, f"no valid Vicon pose in samples {start}..{end}: nothing to anchor"
         )
-
-    v, om = data["v"].ravel(), data["om"].ravel()
+    v, om = data["v"].ravel().astype(float), data["om"].ravel().astype(float)
+    if speed_bound is None:
+        speed_bound = 3.0 * math.sqrt(float(np.asarray(data["v_var"]).ravel()[0]))
+    if turn_rate_bound is None:
+        turn_rate_bound = 3.0 * math.sqrt(float(np.asarray(data["om_var"]).ravel()[0]))
     ranges, bearings = np.asarray(data["r"], float), np.asarray(data["b"], float)
     d = float(np.asarray(data["d"]).ravel()[0])
     x, y = data["x_true"].ravel(), data["y_true"].ravel()
-    theta = np.unwrap(data["th_true"].ravel()[start : end + 1])
+    theta = np.unwrap(data["th_true"].ravel())
     posts = np.asarray(data["l"], float)
-    turn_bound, distance_bound = odometry_bound
-    kept = list(range(start, end + 1, stride))
+    v_box = np.stack([v - speed_bound, v + speed_bound], axis=-1)
+    om_box = np.stack([om - turn_rate_bound, om + turn_rate_bound], axis=-1)
+    mount = ((d, d), (0.0, 0.0), (0.0, 0.0))
 
-    k0 = kept[0]
-    records: list = [
-        PosePrior(
-            0,
-            (x[k0] - 0.01, x[k0] + 0.01),
-            (y[k0] - 0.01, y[k0] + 0.01),
-            (theta[0] - 0.01, theta[0] + 0.01),
-        )
-    ]
-    poses: list[list[float]] = [[x[k0], y[k0], theta[0]]]
-    pose_ids = [0]
+    keys = sorted({*range(start, end, keyframe), first_truth, end})
+    records: list[Record] = []
+    if first_truth > start:
+        # before the first Vicon pose the robot is only known to be near the posts
+        lo, hi = posts.min(axis=0) - ARENA_MARGIN, posts.max(axis=0) + ARENA_MARGIN
+        records.append(PosePrior(0, (lo[0], hi[0]), (lo[1], hi[1]), (-4.0, 4.0)))
     assignment: list[str] = []
-    for i, k in enumerate(kept):
-        pose = 2 * i
+    truth_ids: list[int] = []
+    truth_poses: list[list[float]] = []
+    for i, k in enumerate(keys):
         if i > 0:
-            seg = slice(k - stride, k)
-            dt = np.diff(t[k - stride : k + 1])
-            turn = float(np.sum(om[seg] * dt))
-            dist = float(np.sum(v[seg] * dt))
-            back = math.pi if dist < 0 else 0.0
-            half_a = turn / 2 + drive_offset + back
-            half_b = turn / 2 - drive_offset - back
-            records.append(
-                Odometry(
-                    pose - 2,
-                    pose - 1,
-                    (half_a - turn_bound, half_a + turn_bound),
-                    (max(abs(dist) - distance_bound, 0.0), abs(dist) + distance_bound),
-                )
-            )
-            records.append(
-                Odometry(pose - 1, pose, (half_b - turn_bound, half_b + turn_bound), (0.0, 0.0))
-            )
-            # True auxiliary pose: next position, heading along the chord (near prediction).
-            th_prev = poses[-1][2]
-            chord = math.atan2(y[k] - y[k - stride], x[k] - x[k - stride])
-            chord = th_prev + half_a + math.remainder(chord - th_prev - half_a, 2 * math.pi)
-            poses.append([x[k], y[k], chord])
-            poses.append([x[k], y[k], theta[k - start]])
-            pose_ids += [pose - 1, pose]
-        for j in np.flatnonzero(ranges[k] > 0):
-            box = _centre_box(
-                float(ranges[k, j]), float(bearings[k, j]), d, range_bound, bearing_bound
-            )
-            if box is None:
+            a = keys[i - 1]
+            move = compose_steps(v_box[a:k], om_box[a:k], t[a : k + 1], drive_angle)
+            records.append(RelativePose(i - 1, i, *move))
+        if k == first_truth:
+            records.append(_prior(i, k, x, y, theta))
+        if valid[k]:
+            truth_ids.append(i)
+            truth_poses.append([float(x[k]), float(y[k]), float(theta[k])])
+        last = keys[i + 1] if i + 1 < len(keys) else end + 1
+        for j in range(k, last if every_observation else k + 1):
+            seen = np.flatnonzero(ranges[j] > 0)
+            if seen.size == 0:
                 continue
-            records.append(Observation(pose, "post", box[0], box[1], None if unknown else f"P{j}"))
-            assignment.append(f"P{j}")
-
+            motion = compose_steps(v_box[k:j], om_box[k:j], t[k : j + 1], drive_angle)
+            offset = compose_relative([motion, mount])
+            for p in seen:
+                r, b = float(ranges[j, p]), float(bearings[j, p])
+                records.append(
+                    Observation(
+                        i,
+                        "post",
+                        (max(r - range_bound, 0.0), r + range_bound),
+                        (b - bearing_bound, b + bearing_bound),
+                        None if unknown else f"P{p}",
+                        offset=offset,
+                    )
+                )
+                assignment.append(f"P{p}")
     truth = GroundTruth(
-        poses_xyt=np.asarray(poses, float),
-        pose_ids=pose_ids,
+        poses_xyt=np.asarray(truth_poses, float).reshape(-1, 3),
+        pose_ids=truth_ids,
         landmarks_xy=posts.copy(),
         landmark_ids=[f"P{j}" for j in range(len(posts))],
         landmark_classes=["post"] * len(posts),
@@ -153,33 +187,15 @@ def read_lost_in_the_woods(
     return Log(records=records, path=os.fspath(path)), truth
 
 
-def _centre_box(
-    r: float, b: float, d: float, range_bound: float, bearing_bound: float
-) -> tuple[Bounds, Bounds] | None:
-    """Range and bearing box of the post seen from the robot centre, or None if unsound.
-
-    The post is at ``d·(1, 0) + ρ·(cos β, sin β)`` in the robot frame for the sensor's
-    ``ρ ∈ [r ± range_bound]``, ``β ∈ [b ± bearing_bound]``.  For ``ρ > d`` and
-    ``|β| < π`` the centre bearing increases with β and, for fixed β, is monotone in ρ;
-    the centre range increases with ρ and with ``cos β``.  So the corners (and β = 0 for
-    the largest range) bound both.
-    """
-    r_lo, r_hi = max(r - range_bound, 0.0), r + range_bound
-    b_lo, b_hi = b - bearing_bound, b + bearing_bound
-    if r_lo <= d or b_lo <= -math.pi or b_hi >= math.pi:
-        return None
-
-    def centre(rho: float, beta: float) -> tuple[float, float]:
-        px, py = d + rho * math.cos(beta), rho * math.sin(beta)
-        return math.hypot(px, py), math.atan2(py, px)
-
-    corners = [centre(rho, beta) for rho in (r_lo, r_hi) for beta in (b_lo, b_hi)]
-    bear = (min(c[1] for c in corners) - _EPS, max(c[1] for c in corners) + _EPS)
-    cos_max = 1.0 if b_lo <= 0.0 <= b_hi else max(math.cos(b_lo), math.cos(b_hi))
-    cos_min = min(math.cos(b_lo), math.cos(b_hi))
-    rng_lo = math.sqrt(d * d + r_lo * r_lo + 2 * d * r_lo * cos_min)
-    rng_hi = math.sqrt(d * d + r_hi * r_hi + 2 * d * r_hi * cos_max)
-    return (max(rng_lo - _EPS, 0.0), rng_hi + _EPS), bear
+def _prior(pose: int, k: int, x: np.ndarray, y: np.ndarray, theta: np.ndarray) -> PosePrior:
+    """A small box around the Vicon pose of sample ``k`` (the one anchor of the log)."""
+    e, et = PRIOR_BOUND
+    return PosePrior(
+        pose,
+        (float(x[k]) - e, float(x[k]) + e),
+        (float(y[k]) - e, float(y[k]) + e),
+        (float(theta[k]) - et, float(theta[k]) + et),
+    )
 
 
 def _load(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:

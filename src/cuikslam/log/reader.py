@@ -124,7 +124,7 @@ def _parse_line(raw: str, number: int, path: str) -> Record:
 def _check_order(records: list[Record], path: str) -> None:
     reached: set[int] = set()
     landmark_seen: dict[str, tuple[str, int]] = {}
-    scan_seen: dict[tuple[int, str], int] = {}
+    scan_seen: dict[tuple[int, object, str], int] = {}
     sensor_line: int | None = None
     offset_line: int | None = None
     no_offsets = (
@@ -175,7 +175,8 @@ def _check_order(records: list[Record], path: str) -> None:
                     )
                 if landmark is not None:
                     same_class(record, landmark)
-                    earlier_line = scan_seen.setdefault((pose, landmark), record.line)
+                    scan = (pose, record.offset, landmark)  # one sensor pose, one scan
+                    earlier_line = scan_seen.setdefault(scan, record.line)
                     if earlier_line != record.line:
                         fail(
                             record,
