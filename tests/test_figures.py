@@ -20,10 +20,14 @@ import pytest
 from matplotlib.patches import Rectangle, Wedge
 
 from cuikslam.results.figures import (
+    MAX_POSE_BOXES,
     class_color_map,
+    drawn_poses,
     plot_comparison_on_axes,
     plot_hypothesis_on_axes,
     plot_solution,
+    plot_widths_on_axes,
+    pose_widths,
     save_figure,
     scene_extent,
 )
@@ -394,3 +398,98 @@ def test_import_does_not_load_matplotlib():
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=120
     )
     assert result.returncode == 0, result.stderr
+
+
+# --------------------------------------------------------------------------- long runs
+def make_long_hypothesis(n: int) -> Hypothesis:
+    """``n`` poses around a circle, boxes growing along the run; pose 2n/3 the widest."""
+    k = np.arange(n)
+    angle = 2 * math.pi * k / n
+    half = 0.1 + 0.01 * k
+    half[2 * n // 3] = 50.0
+    centre = np.stack([20 * np.cos(angle), 20 * np.sin(angle)], axis=1)
+    poses = np.empty((n, 3, 2))
+    poses[:, :2, 0] = centre - half[:, None]
+    poses[:, :2, 1] = centre + half[:, None]
+    poses[:, 2] = np.stack([angle - half, angle + half], axis=1)
+    poses[n // 2, 2] = (-math.inf, math.inf)  # an unknown heading
+    poses[n // 3, 1, 1] = math.inf  # an unbounded side
+    return Hypothesis(
+        assignment=["L1"] * n,
+        pose_ids=list(range(100, 100 + n)),
+        poses=poses,
+        landmark_ids=["L1"],
+        landmark_classes=["door"],
+        landmarks=np.array([[[-1.0, 1.0], [-1.0, 1.0]]]),
+        consistency="hull",
+    )
+
+
+def test_drawn_poses_thin_long_runs_keeping_last_and_widest():
+    h = make_long_hypothesis(1000)
+    assert drawn_poses(h.poses, 2000).tolist() == list(range(1000))
+    assert drawn_poses(h.poses, None).tolist() == list(range(1000))
+    drawn = drawn_poses(h.poses, MAX_POSE_BOXES)
+    assert len(drawn) <= MAX_POSE_BOXES
+    assert len(drawn) >= MAX_POSE_BOXES // 2
+    assert drawn[0] == 0 and drawn[-1] == 999
+    assert 1000 // 3 in drawn  # the widest: its y side is unbounded
+    assert np.all(np.diff(drawn) > 0)
+    h.poses[1000 // 3, 1, 1] = h.poses[1000 // 3, 1, 0] + 1.0
+    assert 2 * 1000 // 3 in drawn_poses(h.poses, MAX_POSE_BOXES)  # now the widest
+
+
+def test_long_hypothesis_draws_every_nth_box_and_the_whole_path():
+    h = make_long_hypothesis(1000)
+    _fig, ax = plt.subplots()
+    artists = plot_hypothesis_on_axes(ax, h)
+    assert len(artists["pose_boxes"]) == len(drawn_poses(h.poses))
+    assert len(artists["heading_fans"]) == len(artists["pose_boxes"])
+    (path,) = artists["path"]
+    assert len(path.get_xdata()) == 1000
+    labels = [t.get_text() for t in artists["pose_labels"]]
+    assert labels[0] == "100" and set(labels) <= {str(100 + i) for i in drawn_poses(h.poses)}
+    every = plot_hypothesis_on_axes(ax, h, max_pose_boxes=None)
+    assert len(every["pose_boxes"]) == 1000
+
+
+def test_long_solution_gets_a_width_panel_and_a_short_title(tmp_path):
+    n = 400
+    h = make_long_hypothesis(n)
+    fig = plot_solution(Solution([h], consistency="hull"))
+    boxes_ax, widths_ax = visible_axes(fig)[:2]
+    title = boxes_ax.get_title()
+    assert len(title.split("\n")) == 2 and max(map(len, title.split("\n"))) <= 80
+    assert "400 poses" in title and "400 observations" in title
+    assert "L1 " not in title and "obs→" not in title
+    assert widths_ax.get_xlabel() == "pose (in log order)"
+    lines = widths_ax.get_lines()
+    x_width = lines[0].get_ydata()
+    assert len(x_width) == n
+    assert x_width[0] == pytest.approx(0.2) and x_width[2 * n // 3] == pytest.approx(100.0)
+    assert math.isnan(lines[1].get_ydata()[n // 3])  # unbounded: a gap, not a spike
+    theta = next(ax for ax in fig.axes if ax.get_ylabel() == "θ width [rad]").get_lines()[0]
+    assert theta.get_ydata()[n // 2] == pytest.approx(2 * math.pi)  # capped: any heading
+    path = tmp_path / "long.png"
+    save_figure(fig, path)
+    assert png_size(path)[1] > png_size(path)[0]  # taller than wide: map over widths
+
+
+def test_short_solution_has_no_width_panel():
+    fig = plot_solution(Solution([make_hypothesis()]))
+    assert len(fig.axes) == 1
+    assert pose_widths(make_hypothesis())[2, 2] == pytest.approx(2 * math.pi)
+
+
+def test_width_panel_of_a_very_long_run_shows_the_largest_width_per_bin():
+    n = 1000  # bins of 2 poses
+    h = make_long_hypothesis(n)
+    _fig, ax = plt.subplots()
+    drawn = plot_widths_on_axes(ax, h)
+    x_line, y_line, theta_line = drawn["lines"]
+    assert x_line.get_xdata().tolist() == list(range(0, n, 2))
+    widths = pose_widths(h)
+    assert x_line.get_ydata().tolist() == np.maximum(widths[0::2, 0], widths[1::2, 0]).tolist()
+    assert math.isnan(y_line.get_ydata()[n // 3 // 2])  # the bin with an unbounded side
+    assert theta_line.get_ydata()[n // 2 // 2] == 2 * math.pi
+    assert ax.get_xlim() == (0, n - 1)

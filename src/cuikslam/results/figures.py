@@ -46,9 +46,12 @@ if TYPE_CHECKING:
 
 __all__ = [
     "class_color_map",
+    "drawn_poses",
     "plot_comparison_on_axes",
     "plot_hypothesis_on_axes",
     "plot_solution",
+    "plot_widths_on_axes",
+    "pose_widths",
     "save_figure",
     "scene_extent",
 ]
@@ -64,6 +67,10 @@ _PAD = 0.06
 """Margin added around the finite bounds, as a fraction of the larger side."""
 _MAX_POSE_LABELS = 40
 """Beyond this many poses, only every k-th pose gets a label."""
+MAX_POSE_BOXES = 150
+"""Beyond this many poses, every k-th pose box is drawn (and the widest), not all."""
+WIDTH_PANEL_POSES = 60
+"""A one-hypothesis figure of more poses than this gets a panel of widths over time."""
 _FORMATS = {".png": "png", ".pdf": "pdf", ".svg": "svg"}
 
 
@@ -313,6 +320,7 @@ def plot_hypothesis_on_axes(
     legend: bool = True,
     extent: Extent | None = None,
     class_colors: dict[str, Any] | None = None,
+    max_pose_boxes: int | None = MAX_POSE_BOXES,
 ) -> dict[str, list]:
     """Draw one hypothesis' boxes (and the truth) into ``ax``.
 
@@ -338,12 +346,16 @@ def plot_hypothesis_on_axes(
         the same extent to several axes to make them comparable.
     class_colors : dict, optional
         Class → colour; default :func:`class_color_map` of the hypothesis' classes.
+    max_pose_boxes : int or None
+        Draw at most about this many pose boxes (and fans): every k-th pose, the last one
+        and the widest one (:func:`drawn_poses`); None draws every box. The path still
+        runs through every pose.
 
     Returns
     -------
     dict[str, list]
-        The artists by kind: ``pose_boxes`` (Rectangle per pose), ``heading_fans``
-        (Wedge per pose with a non-empty heading interval), ``pose_labels`` (Text),
+        The artists by kind: ``pose_boxes`` (Rectangle per drawn pose), ``heading_fans``
+        (Wedge per drawn pose with a non-empty heading interval), ``pose_labels`` (Text),
         ``path`` (one Line2D through the box centres), ``landmark_boxes`` (Rectangle per
         landmark), ``landmark_labels`` (Text), ``truth_poses`` (one Line2D of dots),
         ``truth_headings`` (one LineCollection of ticks), ``truth_landmarks`` (one
@@ -409,7 +421,9 @@ def plot_hypothesis_on_axes(
             artists["landmark_labels"].append(label)
 
     # Poses: unfilled boxes, heading fans, the path through the centres, labels.
-    pose_boxes = np.asarray(hypothesis.poses, dtype=float).reshape(-1, 3, 2)
+    all_pose_boxes = np.asarray(hypothesis.poses, dtype=float).reshape(-1, 3, 2)
+    drawn = drawn_poses(all_pose_boxes, max_pose_boxes)
+    pose_boxes = all_pose_boxes[drawn]
     rects, unbounded = _rectangles(
         ax,
         pose_boxes[:, :2],
@@ -420,13 +434,16 @@ def plot_hypothesis_on_axes(
         alpha=None,
         zorder=3,
     )
+    many = len(rects) > _MAX_POSE_LABELS  # overlapping fills would hide one another
     for rect in rects:  # a faint fill shows the area, a solid edge the outline
-        rect.set_facecolor((*_rgb(POSE_COLOR), 0.06))
+        rect.set_facecolor((*_rgb(POSE_COLOR), 0.0 if many else 0.06))
+        if many:
+            rect.set_linewidth(0.5)
     any_unbounded |= unbounded
     artists["pose_boxes"] = rects
-    centres = np.array(
-        [[r.get_x() + r.get_width() / 2, r.get_y() + r.get_height() / 2] for r in rects]
-    ).reshape(-1, 2)
+    clipped_poses, _ = _clip_boxes(all_pose_boxes[:, :2], extent)
+    all_centres = clipped_poses.mean(axis=2)
+    centres = all_centres[drawn]
     if heading_fan:
         for centre, box in zip(centres, pose_boxes, strict=True):
             angles = _fan_angles(box[2])
@@ -444,16 +461,22 @@ def plot_hypothesis_on_axes(
             )
             ax.add_patch(wedge)
             artists["heading_fans"].append(wedge)
-    if len(centres) > 1:
+    if len(all_centres) > 1:
+        thin = len(all_centres) > len(centres)
         (line,) = ax.plot(
-            centres[:, 0], centres[:, 1], color=POSE_COLOR, linewidth=0.8, alpha=0.7, zorder=4
+            all_centres[:, 0],
+            all_centres[:, 1],
+            color=POSE_COLOR,
+            linewidth=0.5 if thin else 0.8,
+            alpha=0.4 if thin else 0.7,
+            zorder=4,
         )
         artists["path"].append(line)
     if show_labels and len(centres):
         stride = math.ceil(len(centres) / _MAX_POSE_LABELS)
         for k in range(0, len(centres), stride):
             label = ax.annotate(
-                str(hypothesis.pose_ids[k]),
+                str(hypothesis.pose_ids[drawn[k]]),
                 tuple(centres[k]),
                 xytext=(4, -4),
                 textcoords="offset points",
@@ -562,6 +585,80 @@ def plot_comparison_on_axes(
     return artists
 
 
+def drawn_poses(pose_boxes: np.ndarray, max_boxes: int | None = MAX_POSE_BOXES) -> np.ndarray:
+    """Indices of the pose boxes a figure draws: all of them up to ``max_boxes``, else
+    every k-th (k chosen to draw about ``max_boxes``), the last one and the widest one
+    (largest of the x and y widths), in pose order."""
+    n = len(pose_boxes)
+    if max_boxes is None or n <= max_boxes:
+        return np.arange(n)
+    stride = _prime_at_least(math.ceil(n / max(max_boxes - 2, 1)))
+    widths = np.diff(np.asarray(pose_boxes, dtype=float)[:, :2], axis=2)[..., 0]
+    widest = int(np.argmax(np.nan_to_num(widths.max(axis=1), nan=np.inf)))
+    return np.unique(np.concatenate([np.arange(0, n, stride), [n - 1, widest]]))
+
+
+def _prime_at_least(k: int) -> int:
+    """The least prime >= ``k``: a stride that no short period of the run divides, so that
+    a robot driving laps shows boxes from every part of its lap, not from one corner."""
+    k = max(k, 2)
+    while any(k % d == 0 for d in range(2, math.isqrt(k) + 1)):
+        k += 1
+    return k
+
+
+WIDTH_BINS = 500
+"""Beyond this many poses, the widths panel draws the largest width of each bin of poses."""
+
+
+def pose_widths(hypothesis: Hypothesis) -> np.ndarray:
+    """The ``(n, 3)`` widths of the pose boxes (x, y in metres; θ in radians, at most 2π)."""
+    boxes = np.asarray(hypothesis.poses, dtype=float).reshape(-1, 3, 2)
+    with np.errstate(invalid="ignore"):
+        widths = boxes[..., 1] - boxes[..., 0]
+    widths[:, 2] = np.minimum(widths[:, 2], 2 * math.pi)
+    return widths
+
+
+def plot_widths_on_axes(ax: Axes, hypothesis: Hypothesis, *, title: str | None = None) -> dict:
+    """Draw the pose box widths along the run (pose index in the hypothesis' order).
+
+    x and y widths in metres on ``ax``; heading widths in radians on a twin axis (capped
+    at 2π: "any heading"). Beyond :data:`WIDTH_BINS` poses, each point is the largest
+    width over a bin of consecutive poses. Unbounded widths leave gaps in the lines.
+    Returns the artists: ``lines`` (x, y, θ) and ``twin`` (the heading axes).
+    """
+    widths = pose_widths(hypothesis)
+    shown = np.where(np.isfinite(widths), widths, np.nan)
+    index = np.arange(len(widths))
+    note = ""
+    if len(widths) > WIDTH_BINS:  # one point per bin: its largest width (a gap if unbounded)
+        size = math.ceil(len(widths) / WIDTH_BINS)
+        starts = np.arange(0, len(widths), size)
+        binned = np.maximum.reduceat(np.nan_to_num(widths, posinf=np.inf), starts, axis=0)
+        shown = np.where(np.isfinite(binned), binned, np.nan)
+        index = starts
+        note = f" (largest of {size} poses)"
+    (line_x,) = ax.plot(index, shown[:, 0], linewidth=0.8, color="tab:blue", label="x width" + note)
+    (line_y,) = ax.plot(index, shown[:, 1], linewidth=0.8, color="tab:orange", label="y width")
+    twin = ax.twinx()
+    (line_t,) = twin.plot(
+        index, shown[:, 2], linewidth=0.6, color="tab:green", alpha=0.7, label="θ width"
+    )
+    twin.set_ylabel("θ width [rad]", fontsize="small")
+    for axes, column in ((ax, shown[:, :2]), (twin, shown[:, 2])):
+        top = np.nanmax(column, initial=0.0)  # room above the lines for the legend
+        axes.set_ylim(0.0, 1.3 * top if top > 0 else 1.0)
+    ax.set_xlim(0, max(len(widths) - 1, 1))
+    ax.set_xlabel("pose (in log order)")
+    ax.set_ylabel("width [m]")
+    ax.grid(True, linewidth=0.4, alpha=0.4)
+    ax.legend(handles=[line_x, line_y, line_t], fontsize="small", loc="upper left", ncols=3)
+    if title is not None:
+        ax.set_title(title, fontsize="small")
+    return {"lines": [line_x, line_y, line_t], "twin": [twin]}
+
+
 # --------------------------------------------------------------------------- figure layer
 def _assignment_text(assignment: Sequence[str], width: int, max_lines: int = 3) -> str:
     """``obs→L: 1 1 2 …`` with the landmark ids' common non-digit prefix moved to the head."""
@@ -588,11 +685,25 @@ def _common_prefix(texts: Sequence[str]) -> str:
     return first[:n]
 
 
-def _panel_title(rank: int, hypothesis: Hypothesis, width: int) -> str:
+_MAX_TITLE_OBSERVATIONS = 30
+"""Beyond this many observations, a one-panel title counts them instead of listing them
+(in small multiples the assignment tells the panels apart, so it stays, shortened)."""
+
+
+def _panel_title(
+    rank: int, hypothesis: Hypothesis, width: int, max_observations: int | None = None
+) -> str:
+    """Rank, landmarks, status, level (and poses drawn, for long runs), then the
+    assignment, or only its length beyond ``max_observations`` observations."""
     n = hypothesis.n_landmarks
     head = f"#{rank} · {n} landmark{'s' if n != 1 else ''} · {hypothesis.status}"
     if hypothesis.consistency:
         head += f" · {hypothesis.consistency}"
+    poses = len(hypothesis.pose_ids)
+    if poses > MAX_POSE_BOXES:
+        head += f" · {poses:,} poses, {len(drawn_poses(hypothesis.poses))} boxes drawn"
+    if max_observations is not None and len(hypothesis.assignment) > max_observations:
+        return head + f"\n{len(hypothesis.assignment):,} observations (assignment in the result)"
     return head + "\n" + _assignment_text(hypothesis.assignment, width)
 
 
@@ -652,13 +763,24 @@ def plot_solution(
 
     if len(shown) <= 1:
         height = min(max(5.3 * aspect, 3.0), 9.0) + 1.4
-        fig = plt.figure(figsize=figsize or (8.0, height), layout="constrained")
-        ax = fig.add_subplot()
+        long_run = bool(shown) and len(shown[0].pose_ids) > WIDTH_PANEL_POSES
+        if long_run:
+            fig, (ax, aw) = plt.subplots(
+                2,
+                1,
+                figsize=figsize or (8.0, height + 2.6),
+                layout="constrained",
+                height_ratios=(height, 2.2),
+            )
+        else:
+            fig = plt.figure(figsize=figsize or (8.0, height), layout="constrained")
+            ax = fig.add_subplot()
         ax.set_anchor("N")
         if shown:
-            plot_hypothesis_on_axes(
-                ax, shown[0], truth, title=_panel_title(1, shown[0], 80), class_colors=colors
-            )
+            title = _panel_title(1, shown[0], 80, _MAX_TITLE_OBSERVATIONS)
+            plot_hypothesis_on_axes(ax, shown[0], truth, title=title, class_colors=colors)
+        if long_run:
+            plot_widths_on_axes(aw, shown[0], title="pose box widths along the run")
         else:
             if truth is not None:
                 _draw_truth(ax, truth, 0.8 * FAN_RADIUS * (extent[1] - extent[0]), None, None)
