@@ -76,29 +76,31 @@ _WARM_UP_LOG = [
     '{"type": "observation", "pose": 1, "class": "c", "range": [0, 0.2], "bearing": [0, 0.1]}',
     '{"type": "observation", "pose": 1, "class": "c", "range": [2, 2.1], "landmark": "A"}',
 ]
-_warmed_up = False
+_warmed_up: set[bool] = set()
+"""The kinds of log (unknown correspondence or not) whose kernels are loaded."""
 
 
-def warm_up() -> float:
+def warm_up(unknown: bool = True) -> float:
     """Compile (or load from numba's cache) the kernels a solve uses, once per process.
 
     Runs before the time budget starts, so that the first solve after installing cuikslam
-    spends its budget on the log rather than on compiling. Returns the seconds it took
-    (0 after the first call).
+    spends its budget on the log rather than on compiling. ``unknown`` also loads the
+    correspondence search's kernels, which a known-correspondence solve does not use
+    (0.1-0.2 s from the cache, far more to compile on a first run). Returns the seconds it
+    took (0 when done before).
     """
-    global _warmed_up
-    if _warmed_up:
+    if unknown in _warmed_up:
         return 0.0
     from cuikslam.log import parse_log_lines
 
     start = time.perf_counter()
-    log = parse_log_lines(_WARM_UP_LOG)
-    solve_unknown(log, consistency="hull")
+    if unknown:
+        solve_unknown(parse_log_lines(_WARM_UP_LOG), consistency="hull")
     known = KinematicGraph.from_log(
-        parse_log_lines([_WARM_UP_LOG[1], *_WARM_UP_LOG[3:4], _WARM_UP_LOG[5]])
+        parse_log_lines([*_WARM_UP_LOG[:2], *_WARM_UP_LOG[3:4], _WARM_UP_LOG[5]])
     )
     propagate(known)
-    _warmed_up = True
+    _warmed_up.add(unknown)
     return time.perf_counter() - start
 
 
@@ -133,7 +135,7 @@ def solve(
     incomplete search, each with a message in ``Solution.messages``.
     """
     ensure_round_to_nearest()
-    warm_up_s = warm_up()
+    warm_up_s = warm_up(log.has_unknown_correspondence)
     start = time.perf_counter()
     deadline = deadline_after(time_budget)
     n_poses = len(log.pose_ids)
