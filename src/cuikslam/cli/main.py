@@ -477,6 +477,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--figure", help="draw boxes, truth and widths over time (.png, .pdf, .svg)")
     p.add_argument("-q", "--quiet", action="store_true", help="no tables")
     p.set_defaults(func=_cmd_evaluate)
+
+    from cuikslam.cli.calibrate import add_calibrate_parser
+
+    add_calibrate_parser(sub)
     return parser
 
 

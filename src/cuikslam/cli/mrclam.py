@@ -8,7 +8,7 @@ import sys
 
 from cuikslam.cli._common import CommandError
 
-__all__ = ["add_mrclam_parser"]
+__all__ = ["add_bound_options", "add_mrclam_parser", "bounds_from_args"]
 
 
 def _finite(text: str) -> float:
@@ -26,6 +26,28 @@ def _positive(text: str) -> float:
     if value <= 0:
         raise argparse.ArgumentTypeError(f"{text!r}: need a number > 0")
     return value
+
+
+def add_bound_options(p: argparse.ArgumentParser) -> None:
+    """``--range-bound``, ``--bearing-bound``, ``--velocity-bound``, ``--turn-rate-bound``,
+    ``--lag`` (None when not given: the defaults or a bounds file decide)."""
+    for name, unit in (
+        ("range", "m"),
+        ("bearing", "rad"),
+        ("velocity", "m/s"),
+        ("turn-rate", "rad/s"),
+    ):
+        p.add_argument(
+            f"--{name}-bound",
+            type=_finite,
+            help=f"{name} error bound [{unit}] (default: measured on Dataset 6, see "
+            "cuikslam.datasets.mrclam.MrclamBounds)",
+        )
+    p.add_argument(
+        "--lag",
+        type=_finite,
+        help="longest time [s] the robot takes to follow a command (default 1.0)",
+    )
 
 
 def add_mrclam_parser(datasets: argparse._SubParsersAction) -> None:
@@ -59,18 +81,12 @@ def add_mrclam_parser(datasets: argparse._SubParsersAction) -> None:
         "each its own landmark",
     )
     p.add_argument("--unknown", action="store_true", help="leave out landmark ids")
-    for name, unit in (
-        ("range", "m"),
-        ("bearing", "rad"),
-        ("velocity", "m/s"),
-        ("turn-rate", "rad/s"),
-    ):
-        p.add_argument(
-            f"--{name}-bound",
-            type=_finite,
-            help=f"{name} error bound [{unit}] (default: measured on Dataset 6, see "
-            "cuikslam.datasets.mrclam.MrclamBounds)",
-        )
+    add_bound_options(p)
+    p.add_argument(
+        "--bounds",
+        metavar="FILE",
+        help="bounds written by `cuikslam calibrate mrclam`; --*-bound and --lag override them",
+    )
     p.add_argument(
         "--truth-gap",
         type=_positive,
@@ -81,20 +97,32 @@ def add_mrclam_parser(datasets: argparse._SubParsersAction) -> None:
     p.set_defaults(func=_cmd_import_mrclam)
 
 
-def _cmd_import_mrclam(args: argparse.Namespace) -> int:
+def bounds_from_args(args: argparse.Namespace):
+    """MrclamBounds: the defaults, then ``--bounds FILE``, then the single options."""
     from dataclasses import replace
 
-    from cuikslam.cli.main import _log_and_truth_outputs, _write_log_and_truth
-    from cuikslam.datasets.mrclam import MrclamBounds, read_mrclam
+    from cuikslam.datasets.calibrate import read_bounds_file
+    from cuikslam.datasets.mrclam import MrclamBounds
 
-    out, truth_out = _log_and_truth_outputs(args.output)
+    bounds = MrclamBounds()
+    if getattr(args, "bounds", None):
+        bounds = replace(bounds, **read_bounds_file(args.bounds))
     given = {
         "range": args.range_bound,
         "bearing": args.bearing_bound,
         "velocity": args.velocity_bound,
         "turn_rate": args.turn_rate_bound,
+        "lag": args.lag,
     }
-    bounds = replace(MrclamBounds(), **{k: v for k, v in given.items() if v is not None})
+    return replace(bounds, **{k: v for k, v in given.items() if v is not None})
+
+
+def _cmd_import_mrclam(args: argparse.Namespace) -> int:
+    from cuikslam.cli.main import _log_and_truth_outputs, _write_log_and_truth
+    from cuikslam.datasets.mrclam import read_mrclam
+
+    out, truth_out = _log_and_truth_outputs(args.output)
+    bounds = bounds_from_args(args)
     try:
         log, truth, report = read_mrclam(
             args.folder,

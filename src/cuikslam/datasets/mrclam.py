@@ -144,7 +144,7 @@ class MrclamImport:
 
 
 def read_mrclam(
-    folder: str | os.PathLike[str],
+    folder: str | os.PathLike[str] | MrclamTables,
     robot: int,
     *,
     start: float = 0.0,
@@ -160,8 +160,9 @@ def read_mrclam(
 
     Parameters
     ----------
-    folder : path
-        The dataset folder (``Barcodes.dat``, ``RobotN_*.dat``, ...).
+    folder : path or MrclamTables
+        The dataset folder (``Barcodes.dat``, ``RobotN_*.dat``, ...), or its tables
+        already read by :func:`~cuikslam.datasets.mrclam_files.read_mrclam_tables`.
     robot : int
         1 to 5.
     start, duration : float
@@ -196,7 +197,12 @@ def read_mrclam(
     bounds = bounds or MrclamBounds()
     if motion is None:
         from cuikslam.datasets.mrclam_motion import relative_pose_motion as motion
-    tables = read_mrclam_tables(folder, robot)
+    if isinstance(folder, MrclamTables):
+        tables = folder
+        if tables.robot != robot:
+            raise ValueError(f"the tables are robot {tables.robot}'s, not robot {robot}'s")
+    else:
+        tables = read_mrclam_tables(folder, robot)
     t0, t1 = _window(tables, start, duration, bounds)
     report = MrclamImport(robot=robot, start=t0, end=t1)
 

@@ -1,0 +1,359 @@
+"""Bounds that hold, honestly obtained: measure error bounds on a run with truth, check
+them on another.
+
+:func:`calibrate_mrclam` measures, on a part of a MRCLAM run (a robot, a time window),
+the errors of each measurement type against the Vicon truth and returns the smallest
+bounds under which a chosen share (by default all) of that part's measurements hold the
+truth. :func:`count_outside` then imports *another* part with those bounds and counts
+the measurements whose interval misses the truth: the honest figure of how well the
+bounds carry over. :func:`write_bounds_file` and :func:`read_bounds_file` keep the
+bounds in a small JSON file that ``cuikslam import mrclam --bounds FILE`` accepts::
+
+    {"cuikslam_bounds": 1, "dataset": "mrclam",
+     "bounds": {"range": 0.58, "bearing": 0.098, "velocity": 0.03, "turn_rate": 0.1, ...},
+     "calibrated_on": {...}, "errors": {...}}
+
+* **Range, bearing**: the error of each landmark sighting against the range and bearing
+  from the robot's Vicon pose (interpolated at the image's time) to the landmark's
+  Vicon position; the bound is the ``quantile`` of the absolute errors (1: the maximum).
+* **Motion**: the commands' bounds (``velocity``, ``turn_rate``, with the lag) are
+  scaled together from the defaults until the share ``quantile`` of the part's moves
+  hold the truth (bisection on the scale; every candidate is imported and checked).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import asdict, dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from cuikslam._atomic import atomic_write_text
+from cuikslam.datasets.mrclam import MrclamBounds, read_mrclam
+from cuikslam.datasets.mrclam_files import MrclamTables, read_mrclam_tables
+from cuikslam.log.errors import LogFormatError
+from cuikslam.log.records import Log, Observation, Odometry, RelativePose
+from cuikslam.simulate.truth import GroundTruth
+
+__all__ = [
+    "Calibration",
+    "Outside",
+    "calibrate_mrclam",
+    "count_outside",
+    "log_misses",
+    "read_bounds_file",
+    "write_bounds_file",
+]
+
+FORMAT_VERSION = 1
+
+
+def _inside_angle(value: float, box: tuple[float, float]) -> bool:
+    lo, hi = box
+    return lo + (value - lo) % (2 * math.pi) <= hi
+
+
+@dataclass
+class Outside:
+    """Measurements of a log whose interval misses the truth (only those with truth)."""
+
+    ranges: int = 0
+    bearings: int = 0
+    observations_checked: int = 0
+    moves: int = 0
+    moves_checked: int = 0
+    outside_observations: list[int] = field(default_factory=list)
+    """Indices (log order) of the observations with a range or bearing outside."""
+
+    def describe(self) -> str:
+        return (
+            f"{self.ranges} ranges and {self.bearings} bearings of {self.observations_checked} "
+            f"observations, {self.moves} of {self.moves_checked} moves outside their intervals"
+        )
+
+
+def log_misses(log: Log, truth: GroundTruth) -> Outside:
+    """Count the measurements of ``log`` that miss ``truth`` (poses without truth skipped).
+
+    Compared in floating point (a calibration figure, not a proof): a range or bearing
+    against the distance and direction from the true pose to the true landmark (bearing
+    modulo 2π), a relative pose or odometry against the true poses at its two ends.
+    """
+    pose = dict(zip(truth.pose_ids, truth.poses_xyt.tolist(), strict=True))
+    mark = dict(zip(truth.landmark_ids, truth.landmarks_xy.tolist(), strict=True))
+    out = Outside()
+    observations = iter(truth.assignment)
+    index = 0
+    for record in log.records:
+        if isinstance(record, Observation):
+            lid = next(observations)
+            p = pose.get(record.pose)
+            if p is not None:
+                q = mark[lid]
+                out.observations_checked += 1
+                rng = math.hypot(q[0] - p[0], q[1] - p[1])
+                bearing = math.atan2(q[1] - p[1], q[0] - p[0]) - p[2]
+                bad_range = record.range is not None and not (
+                    record.range[0] <= rng <= record.range[1]
+                )
+                bad_bearing = record.bearing is not None and not _inside_angle(
+                    bearing, record.bearing
+                )
+                out.ranges += bad_range
+                out.bearings += bad_bearing
+                if bad_range or bad_bearing:
+                    out.outside_observations.append(index)
+            index += 1
+        elif isinstance(record, RelativePose | Odometry):
+            a, b = pose.get(record.source), pose.get(record.target)
+            if a is None or b is None:
+                continue
+            out.moves_checked += 1
+            out.moves += not _move_inside(record, a, b)
+    return out
+
+
+def _move_inside(record: RelativePose | Odometry, a: list[float], b: list[float]) -> bool:
+    if isinstance(record, Odometry):
+        dist = math.hypot(b[0] - a[0], b[1] - a[1])
+        return _inside_angle(b[2] - a[2], record.turn) and (
+            record.distance[0] <= dist <= record.distance[1]
+        )
+    c, s = math.cos(a[2]), math.sin(a[2])
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    return (
+        record.dx[0] <= c * dx + s * dy <= record.dx[1]
+        and record.dy[0] <= -s * dx + c * dy <= record.dy[1]
+        and record.dtheta[0] <= b[2] - a[2] <= record.dtheta[1]
+    )
+
+
+@dataclass
+class Calibration:
+    """Bounds measured on a part of a run, and the errors they come from."""
+
+    bounds: MrclamBounds
+    calibrated_on: dict[str, Any]
+    errors: dict[str, dict[str, float]]
+    outside: Outside
+    """The calibration part itself imported with the bounds (nonzero when quantile < 1)."""
+
+
+def _sighting_errors(
+    tables: MrclamTables, start: float, duration: float | None, truth_gap: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Range and bearing errors of the landmark sightings the importer keeps in the window
+    (imported with zero bounds, so each interval is the reading), where Vicon has truth."""
+    exact = replace(MrclamBounds(), range=0.0, bearing=0.0)
+    log, truth, _ = read_mrclam(
+        tables, tables.robot, start=start, duration=duration, bounds=exact, truth_gap=truth_gap
+    )
+    pose = dict(zip(truth.pose_ids, truth.poses_xyt.tolist(), strict=True))
+    mark = dict(zip(truth.landmark_ids, truth.landmarks_xy.tolist(), strict=True))
+    ranges, bearings = [], []
+    for obs, lid in zip(log.observations, truth.assignment, strict=True):
+        p = pose.get(obs.pose)
+        if p is None or obs.landmark_class != "landmark":
+            continue
+        q = mark[lid]
+        ranges.append(obs.range[0] - math.hypot(q[0] - p[0], q[1] - p[1]))
+        direction = math.atan2(q[1] - p[1], q[0] - p[0]) - p[2]
+        bearings.append(math.remainder(obs.bearing[0] - direction, 2 * math.pi))
+    return np.array(ranges), np.array(bearings)
+
+
+def _round_up(value: float) -> float:
+    """``value`` rounded up to 3 significant digits (a bound never shrinks)."""
+    if value <= 0:
+        return 0.0
+    step = 10.0 ** (math.floor(math.log10(value)) - 2)
+    rounded = float(f"{math.ceil(value / step) * step:.3g}")
+    while rounded < value:
+        rounded = math.nextafter(rounded, math.inf)
+    return rounded
+
+
+def _stats(errors: np.ndarray) -> dict[str, float]:
+    a = np.abs(errors)
+    if a.size == 0:
+        return {"count": 0}
+    return {
+        "count": int(a.size),
+        "median": float(np.median(a)),
+        "p99": float(np.quantile(a, 0.99)),
+        "max": float(a.max()),
+    }
+
+
+def calibrate_mrclam(
+    folder: str | os.PathLike[str] | MrclamTables,
+    robot: int,
+    *,
+    start: float = 0.0,
+    duration: float | None = None,
+    quantile: float = 1.0,
+    base: MrclamBounds | None = None,
+    truth_gap: float = 0.25,
+    keyframe_gap: float = 1.0,
+) -> Calibration:
+    """Measure bounds on robot ``robot``'s window ``start``, ``duration`` (see the module
+    docstring).
+
+    Parameters
+    ----------
+    quantile : float
+        Share (0 < q <= 1) of the part's measurements of each type the bounds must hold;
+        1 takes the maxima, so every measurement of the part holds.
+    base : MrclamBounds, optional
+        Bounds kept as they are (lag, move slack, prior) and the motion bounds' starting
+        point (default :class:`MrclamBounds()`).
+
+    Raises
+    ------
+    LogFormatError
+        If the files are malformed or the window holds no landmark sighting with truth.
+    ValueError
+        If ``quantile`` is not in (0, 1].
+    """
+    if not 0 < quantile <= 1:
+        raise ValueError(f"the quantile must be in (0, 1], got {quantile}")
+    tables = folder if isinstance(folder, MrclamTables) else read_mrclam_tables(folder, robot)
+    base = base or MrclamBounds()
+    range_error, bearing_error = _sighting_errors(tables, start, duration, truth_gap)
+    if range_error.size == 0:
+        raise LogFormatError(
+            tables.folder,
+            None,
+            f"robot {robot}: no landmark sighting with Vicon truth in the window",
+        )
+    bounds = replace(
+        base,
+        range=_round_up(float(np.quantile(np.abs(range_error), quantile, method="higher"))),
+        bearing=_round_up(float(np.quantile(np.abs(bearing_error), quantile, method="higher"))),
+    )
+
+    def moves_outside(scale: float) -> tuple[int, int]:
+        trial = replace(bounds, velocity=base.velocity * scale, turn_rate=base.turn_rate * scale)
+        log, truth, _ = read_mrclam(
+            tables, robot, start=start, duration=duration, bounds=trial,
+            truth_gap=truth_gap, keyframe_gap=keyframe_gap,
+        )  # fmt: skip
+        found = log_misses(log, truth)
+        return found.moves, found.moves_checked
+
+    allowed = lambda checked: math.floor((1 - quantile) * checked + 1e-9)  # noqa: E731
+    lo, hi = 0.0, 1.0
+    while True:
+        missed, checked = moves_outside(hi)
+        if missed <= allowed(checked) or hi >= 64:
+            break
+        lo, hi = hi, 2 * hi
+    for _ in range(8):  # the scale to within 1/256 of [lo, hi]
+        mid = (lo + hi) / 2
+        missed, checked = moves_outside(mid)
+        if missed <= allowed(checked):
+            hi = mid
+        else:
+            lo = mid
+    bounds = replace(
+        bounds,
+        velocity=_round_up(base.velocity * hi),
+        turn_rate=_round_up(base.turn_rate * hi),
+    )
+    log, truth, _ = read_mrclam(
+        tables, robot, start=start, duration=duration, bounds=bounds,
+        truth_gap=truth_gap, keyframe_gap=keyframe_gap,
+    )  # fmt: skip
+    return Calibration(
+        bounds=bounds,
+        calibrated_on={
+            "folder": os.fspath(tables.folder),
+            "robot": robot,
+            "start": start,
+            "duration": duration,
+            "quantile": quantile,
+        },
+        errors={
+            "range": _stats(range_error),
+            "bearing": _stats(bearing_error),
+            "motion_scale": {"of_default_velocity_and_turn_rate": hi},
+        },
+        outside=log_misses(log, truth),
+    )
+
+
+def count_outside(
+    folder: str | os.PathLike[str] | MrclamTables,
+    robot: int,
+    bounds: MrclamBounds,
+    *,
+    start: float = 0.0,
+    duration: float | None = None,
+    truth_gap: float = 0.25,
+    keyframe_gap: float = 1.0,
+) -> Outside:
+    """Import a part with ``bounds`` and count the measurements that miss the truth."""
+    log, truth, _ = read_mrclam(
+        folder, robot, start=start, duration=duration, bounds=bounds,
+        truth_gap=truth_gap, keyframe_gap=keyframe_gap,
+    )  # fmt: skip
+    return log_misses(log, truth)
+
+
+def write_bounds_file(calibration: Calibration, path: str | os.PathLike[str]) -> None:
+    """Write the bounds file (see the module docstring), atomically."""
+    doc = {
+        "cuikslam_bounds": FORMAT_VERSION,
+        "dataset": "mrclam",
+        "bounds": asdict(calibration.bounds),
+        "calibrated_on": calibration.calibrated_on,
+        "errors": calibration.errors,
+    }
+    atomic_write_text(path, json.dumps(doc, indent=1, allow_nan=False) + "\n")
+
+
+def read_bounds_file(path: str | os.PathLike[str], dataset: str = "mrclam") -> dict[str, float]:
+    """The bounds of a bounds file, checked (names and values) for ``dataset``.
+
+    Raises
+    ------
+    LogFormatError
+        Naming the file: unreadable, not JSON, another dataset's, an unknown bound name,
+        or a value that is not a finite number >= 0.
+    """
+    try:
+        with open(path, encoding="utf-8") as handle:
+            doc = json.load(handle)
+    except OSError as err:
+        raise LogFormatError(path, None, f"cannot read the bounds file: {err.strerror}") from None
+    except json.JSONDecodeError as err:
+        raise LogFormatError(path, err.lineno, f"malformed JSON: {err.msg}") from None
+    except UnicodeDecodeError:
+        raise LogFormatError(path, None, "the bounds file is not UTF-8 text") from None
+    if not (isinstance(doc, dict) and doc.get("cuikslam_bounds") == FORMAT_VERSION):
+        raise LogFormatError(
+            path,
+            None,
+            'not a cuikslam bounds file (no "cuikslam_bounds": 1; see cuikslam calibrate)',
+        )
+    if doc.get("dataset") != dataset:
+        raise LogFormatError(
+            path, None, f"bounds of dataset {doc.get('dataset')!r}, not of {dataset!r}"
+        )
+    bounds = doc.get("bounds")
+    if not isinstance(bounds, dict):
+        raise LogFormatError(path, None, '"bounds" must be an object {"range": ..., ...}')
+    known = set(MrclamBounds.__dataclass_fields__)
+    for name, value in bounds.items():
+        if name not in known:
+            raise LogFormatError(
+                path, None, f"unknown bound {name!r}; known: {', '.join(sorted(known))}"
+            )
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise LogFormatError(path, None, f"bound {name!r} must be a number, got {value!r}")
+        if not (math.isfinite(value) and value >= 0):
+            raise LogFormatError(path, None, f"bound {name!r} must be finite and >= 0")
+    return {k: float(v) for k, v in bounds.items()}
