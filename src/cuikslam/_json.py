@@ -11,7 +11,6 @@ repr, which reads back as the same double).
 from __future__ import annotations
 
 import json
-import re
 from typing import Any
 
 try:
@@ -23,31 +22,37 @@ __all__ = ["HAVE_ORJSON", "dumps", "loads_object"]
 
 HAVE_ORJSON = orjson is not None
 
-_KEY = re.compile(r'"\s*:')
-"""Where a key can end: every key of a JSON object matches (a string value may too)."""
-_LONG_DIGITS = re.compile(r"\d{19}")
-"""A digit run orjson might read otherwise than the standard library (it turns integers
-beyond 64 bits into floats): such lines take the strict path."""
+_BIG = 2.0**63
+"""orjson reads an integer beyond 64 bits as a float: a float this large may have been one."""
 
 
 def loads_object(text: str) -> dict[str, Any] | None:
     """The JSON object ``text`` holds, or None when the fast path cannot vouch for it.
 
-    None when orjson is missing, refuses the text (malformed JSON, NaN), the text has a
-    run of 19 digits or more (orjson reads integers beyond 64 bits as floats), or it
-    decodes to something other than an object of unique keys: orjson keeps the last of
-    two equal keys silently, so an object is returned only when it has as many keys as
-    the text has places where a key can end (a nested object or a string value holding
-    ``":`` sends the line to the strict path too).
+    None when orjson is missing or refuses the text (malformed JSON, NaN), and unless
+    the text decodes to an object whose values are scalars or lists of scalars, with no
+    float of magnitude 2**63 or more (orjson reads larger integers as floats), and with
+    as many ``:`` in the text as keys in the object: orjson keeps the last of two equal
+    keys silently, and every key is followed by a colon, so this equality rules out a
+    repeated key (a colon inside a string only sends the line to the strict path).
     """
-    if orjson is None or _LONG_DIGITS.search(text):
+    if orjson is None:
         return None
     try:
         value = orjson.loads(text)
     except orjson.JSONDecodeError:
         return None
-    if type(value) is not dict or len(_KEY.findall(text)) != len(value):
+    if type(value) is not dict or text.count(":") != len(value):
         return None
+    for item in value.values():
+        if type(item) is list:
+            for element in item:
+                if type(element) in (list, dict) or (
+                    type(element) is float and not -_BIG < element < _BIG
+                ):
+                    return None
+        elif type(item) is dict or (type(item) is float and not -_BIG < item < _BIG):
+            return None
     return value
 
 
