@@ -11,10 +11,11 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from _exact import MP, mpf
+from cuikslam.graph.encoding import RELATIVE
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.log import (
     LogFormatError,
@@ -24,6 +25,9 @@ from cuikslam.log import (
     write_log_file,
 )
 from cuikslam.narrowing.propagation import Status, propagate
+from cuikslam.narrowing.relaxation import relax, tighten
+from test_consistency import _assert_rows_hold, _inside
+from test_factor_soundness import worlds as factor_worlds
 from worlds import down, up
 
 PRIOR = '{"type": "prior", "pose": 0, "x": [0, 0], "y": [0, 0], "theta": [0, 0]}'
@@ -161,3 +165,47 @@ def test_offset_observation_places_the_landmark_from_the_sensor():
     assert np.all(box[:, 0] <= lo) and np.all(hi <= box[:, 1])
     # the hull of the annular sector is within a few mm of its corners' box
     assert np.all(box[:, 0] >= lo - 0.01) and np.all(box[:, 1] <= hi + 0.01)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    centre=st.floats(-1e3, 1e3),
+    heading_width=st.floats(0.0, 7.0),
+    u=st.tuples(st.floats(-5.0, 5.0), st.floats(0.0, 1.0)),
+    v=st.tuples(st.floats(-5.0, 5.0), st.floats(0.0, 1.0)),
+    where=st.lists(st.floats(0.0, 1.0), min_size=3, max_size=3),
+)
+def test_every_relative_relaxation_row_holds_at_every_point_of_the_box(
+    centre, heading_width, u, v, where
+):
+    """Any point of the box on b - a = R(ta) (u, v) satisfies every row of the LP."""
+    row = np.array([[RELATIVE, 0, 1, 2, 3, 4, -1, 5, 6]])
+    lo, hi = np.full(7, -100.0), np.full(7, 100.0)
+    lo[2], hi[2] = centre - heading_width / 2, centre + heading_width / 2
+    lo[5], hi[5] = u[0], u[0] + u[1]
+    lo[6], hi[6] = v[0], v[0] + v[1]
+    values = np.zeros(7)
+    for var, w in zip((2, 5, 6), where, strict=True):
+        values[var] = lo[var] + w * (hi[var] - lo[var])
+    exact = [mpf(x) for x in values]
+    c, s = MP.cos(exact[2]), MP.sin(exact[2])
+    exact[3] = exact[0] + exact[5] * c - exact[6] * s
+    exact[4] = exact[1] + exact[5] * s + exact[6] * c
+    assume(_inside(lo, hi, exact) == [])
+    relaxation = relax(row, lo, hi)
+    assert relaxation.matrix.shape[1] == 7 + 2  # cos and sin of ta
+    _assert_rows_hold(relaxation, exact)
+
+
+@settings(max_examples=100, deadline=None)
+@given(data=st.data())
+def test_lp_tightening_keeps_the_truth_of_relative_worlds(data):
+    """The worlds of the soundness tests (odometry, relative poses, offset sensors):
+    the polytope-hull narrowing after the fixpoint never loses the exact truth."""
+    world = data.draw(factor_worlds(max_poses=5, max_landmarks=3))
+    result = propagate(world.graph)
+    assert result.status is Status.CONSISTENT
+    targets = np.arange(world.graph.n_variables)
+    lo, hi, feasible = tighten(world.graph.factor_table(), result.lo, result.hi, targets)
+    assert feasible, world.description
+    assert world.lost(lo, hi) == [], world.description

@@ -40,8 +40,9 @@ __all__ = ["budget_message", "hypothesis_from_graph", "solve"]
 ProgressCallback = Callable[[int, int], None]
 """Called with (done, total) as a long solve advances."""
 
-DEFAULT_CERTIFY_LIMIT = 1
-"""Best-ranked hypotheses that get a verified witness (a failed search costs ~1 s)."""
+DEFAULT_CERTIFY_LIMIT: int | None = None
+"""Best-ranked hypotheses that get a witness search (None: every reported one; they share
+the time left round-robin)."""
 CERTIFY_MAX_POSES = 50
 """No witness search beyond this many poses (it grows to tens of seconds at 100 poses)."""
 SEARCH_SHARE = 0.8
@@ -111,7 +112,7 @@ def solve(
     max_hypotheses: int = DEFAULT_MAX_HYPOTHESES,
     strengthen_limit: int = DEFAULT_STRENGTHEN_LIMIT,
     strengthen_during: int = DEFAULT_STRENGTHEN_DURING,
-    certify_limit: int = DEFAULT_CERTIFY_LIMIT,
+    certify_limit: int | None = DEFAULT_CERTIFY_LIMIT,
     rtol: float = DEFAULT_RTOL,
     progress: ProgressCallback | None = None,
     time_budget: float | None = DEFAULT_TIME_BUDGET,
@@ -121,8 +122,9 @@ def solve(
     With known correspondence there is one hypothesis, or none when the log is proven
     inconsistent (then ``Solution.refuted`` is True). When some observation names no
     landmark, the correspondence search of :func:`cuikslam.hypotheses.solve_unknown` runs.
-    The ``certify_limit`` best-ranked hypotheses are then certified: a solution point is
-    searched and verified in interval arithmetic, making them *proven consistent*.
+    The ``certify_limit`` best-ranked hypotheses (all reported ones by default) are then
+    certified: a solution point is searched and verified in interval arithmetic, making
+    them *proven consistent*.
 
     ``time_budget`` (seconds, None for no limit) bounds the whole solve. With known
     correspondence the fixpoint of the factors always runs to the end (it takes

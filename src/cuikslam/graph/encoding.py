@@ -12,8 +12,9 @@ Variables are two float arrays ``lo`` and ``hi``. A factor is one int64 row
 - ``RELATIVE``: the translation of a relative pose (log record ``relative_pose``), pose a
   -> pose b (``tb = -1``): (xb - xa, yb - ya) = R(ta) (dx, dy), R(t) the rotation by t;
   ``angle`` = dx and ``length`` = dy, the displacement in the frame of pose a.
-- ``ROTATION``: tb ≡ ta + angle (mod 2 pi) alone (only ``ta``, ``tb``, ``angle`` are used);
-  the heading change of a relative pose.
+- ``ROTATION``: tb ≡ ta + angle (mod 2 pi), the heading change of a relative pose. Its
+  row names both poses like an odometry row (so windows of poses find it), but its
+  operator reads and narrows only ``ta``, ``tb`` and ``angle``.
 - ``UNSEEN``: pose a did not see landmark b although it would have seen it within
   distance ``length`` and inside its field of view: |b - a| >= length, or the bearing of
   b lies in ``ta + angle``, where ``angle`` holds the bearings outside the field of view.

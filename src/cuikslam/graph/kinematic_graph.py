@@ -138,7 +138,7 @@ class KinematicGraph:
         b = self.add_pose(target)
         m = self._new_vars([dx, dy, dtheta])
         self._factors.append((RELATIVE, a, a + 1, a + 2, b, b + 1, -1, m, m + 1))
-        self._factors.append((ROTATION, -1, -1, a + 2, -1, -1, b + 2, m + 2, -1))
+        self._factors.append((ROTATION, a, a + 1, a + 2, b, b + 1, b + 2, m + 2, -1))
         self.factor_lines.extend((line, line))
         return len(self._factors) - 2
 
@@ -171,7 +171,7 @@ class KinematicGraph:
         o = self._new_vars([*offset, *[(-math.inf, math.inf)] * 3])
         s = o + 3
         self._factors.append((RELATIVE, a, a + 1, a + 2, s, s + 1, -1, o, o + 1))
-        self._factors.append((ROTATION, -1, -1, a + 2, -1, -1, s + 2, o + 2, -1))
+        self._factors.append((ROTATION, a, a + 1, a + 2, s, s + 1, s + 2, o + 2, -1))
         self._factors.append((OBSERVATION, s, s + 1, s + 2, b, b + 1, -1, m, m + 1))
         self.factor_lines.extend((line, line, line))
         return len(self._factors) - 1

@@ -189,7 +189,7 @@ def build_problem(log: Log) -> Problem:
             a, c = pose(record.source), pose(record.target)
             m = b.new(record.dx, record.dy, record.dtheta)
             rows.append((RELATIVE, a, a + 1, a + 2, c, c + 1, -1, m, m + 1))
-            rows.append((ROTATION, -1, -1, a + 2, -1, -1, c + 2, m + 2, -1))
+            rows.append((ROTATION, a, a + 1, a + 2, c, c + 1, c + 2, m + 2, -1))
         elif isinstance(record, Observation):
             if record.offset is not None:
                 raise ValueError(

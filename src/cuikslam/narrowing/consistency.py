@@ -31,7 +31,17 @@ import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import expired
-from cuikslam.graph.encoding import KIND, OBSERVATION, ODOMETRY, TA, TB, XA, XB
+from cuikslam.graph.encoding import (
+    KIND,
+    OBSERVATION,
+    ODOMETRY,
+    RELATIVE,
+    ROTATION,
+    TA,
+    TB,
+    XA,
+    XB,
+)
 from cuikslam.narrowing._propagate import CONSISTENT, INCONSISTENT, propagate_arrays
 from cuikslam.narrowing.relaxation import LpStatistics, WarmStarts, tighten
 
@@ -104,10 +114,11 @@ def resolve_level(level: str, n_poses: int) -> str:
 
 def _windows(factors: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
     """Overlapping windows of consecutive poses: (factor rows, target variables) each."""
-    rows = factors[np.isin(factors[:, KIND], (ODOMETRY, OBSERVATION))]
+    rows = factors[np.isin(factors[:, KIND], (ODOMETRY, OBSERVATION, RELATIVE, ROTATION))]
     if len(rows) == 0:
         return []
-    odo = rows[:, KIND] == ODOMETRY
+    odo = np.isin(rows[:, KIND], (ODOMETRY, RELATIVE, ROTATION))  # pose to pose
+    turns = np.isin(rows[:, KIND], (ODOMETRY, ROTATION))  # with a heading tb
     poses = np.unique(np.concatenate([rows[:, XA], rows[odo, XB]]))
     if len(poses) <= WINDOW_POSES:
         groups = [poses]
@@ -117,10 +128,10 @@ def _windows(factors: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
     windows = []
     for group in groups:
         inside = np.isin(rows[:, XA], group) & (~odo | np.isin(rows[:, XB], group))
-        selected, selected_odo = rows[inside], odo[inside]
+        selected, selected_turns = rows[inside], turns[inside]
         b = selected[:, XB]
         targets = [selected[:, XA], selected[:, XA] + 1, selected[:, TA], b, b + 1]
-        targets.append(selected[selected_odo, TB])
+        targets.append(selected[selected_turns, TB])
         windows.append((selected, np.unique(np.concatenate(targets))))
     return windows
 
@@ -196,7 +207,8 @@ def strengthen(
         report.budget_exhausted = True
     if status == INCONSISTENT or level == "lp" or not finished:
         return status, applications
-    headings = np.unique(arrays.factors[arrays.factors[:, KIND] == ODOMETRY][:, [TA, TB]])
+    turning = np.isin(arrays.factors[:, KIND], (ODOMETRY, ROTATION))
+    headings = np.unique(arrays.factors[turning][:, [TA, TB]])
     for _ in range(SPLIT_HEADINGS):
         if expired(deadline):
             report.budget_exhausted = True

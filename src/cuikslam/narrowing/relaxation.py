@@ -33,6 +33,8 @@ from cuikslam.graph.encoding import (
     LENGTH,
     OBSERVATION,
     ODOMETRY,
+    RELATIVE,
+    ROTATION,
     TA,
     TB,
     XA,
@@ -170,7 +172,7 @@ def relax(factors: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> LinearRelaxati
     """
     n = len(lo)
     box = np.stack([lo, hi], axis=-1)
-    used = factors[np.isin(factors[:, KIND], (ODOMETRY, OBSERVATION))]
+    used = factors[np.isin(factors[:, KIND], (ODOMETRY, OBSERVATION, RELATIVE, ROTATION))]
     slots = used[:, 1:]
     finite = np.all(np.isfinite(box[np.maximum(slots, 0)]).all(axis=-1) | (slots < 0), axis=1)
     used = used[finite]
@@ -179,8 +181,9 @@ def relax(factors: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> LinearRelaxati
     aux_angles: list[np.ndarray] = []
     aux_cos: list[np.ndarray] = []
     odo = used[:, KIND] == ODOMETRY
+    obs = used[:, KIND] == OBSERVATION
     # the heading that drives the displacement: tb for odometry, ta + bearing otherwise
-    for mask, angle_cols in ((odo, [used[:, TB]]), (~odo, [used[:, TA], used[:, ANGLE]])):
+    for mask, angle_cols in ((odo, [used[:, TB]]), (obs, [used[:, TA], used[:, ANGLE]])):
         if not mask.any():
             continue
         count = int(mask.sum())
@@ -208,8 +211,31 @@ def relax(factors: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> LinearRelaxati
                 rows.append((product_cols, np.column_stack([ones, -ones, -a_len, -a_t]), k))
         # the cos column of this group precedes its sin column by ``count``
         rows.extend(_circle_rows(phi, np.column_stack([aux - count, aux])))
-    if odo.any():
-        rows.extend(_turn_rows(used[odo], box))
+    turns = np.isin(used[:, KIND], (ODOMETRY, ROTATION))
+    if turns.any():
+        rows.extend(_turn_rows(used[turns], box))
+    relative = used[used[:, KIND] == RELATIVE]
+    if len(relative):
+        # cos and sin of ta as auxiliary columns, then b - a = R(ta) (u, v) through them
+        phi = box[relative[:, TA]]
+        count = len(relative)
+        aux_c = n + sum(len(a) for a in aux_boxes) + np.arange(count)
+        aux_s = aux_c + count
+        trig = (ia.cos(phi), ia.sin(phi))
+        for use_cos, aux, trig_box in ((True, aux_c, trig[0]), (False, aux_s, trig[1])):
+            aux_boxes.append(trig_box)
+            aux_angles.append(np.column_stack([relative[:, TA], np.full(count, -1)]))
+            aux_cos.append(np.full(count, use_cos))
+            for m, k in _trig_range_rows(phi, use_cos):
+                rows.append(
+                    (
+                        np.column_stack([aux, relative[:, TA]]),
+                        np.column_stack([np.ones(count), -m]),
+                        k,
+                    )
+                )
+        rows.extend(_circle_rows(phi, np.column_stack([aux_c, aux_s])))
+        rows.extend(_rotation_rows(relative, box, trig, aux_c, aux_s))
     aux_box = np.concatenate(aux_boxes) if aux_boxes else np.zeros((0, 2))
     width = n + len(aux_box)
     col_lo = np.concatenate([lo, aux_box[:, 0]])
@@ -237,6 +263,53 @@ def relax(factors: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> LinearRelaxati
     return LinearRelaxation(
         matrix, bounds[:, 0], bounds[:, 1], col_lo, col_hi, aux_angle_cols, aux_is_cos
     )
+
+
+def _rotation_rows(
+    relative: np.ndarray,
+    box: np.ndarray,
+    trig: tuple[np.ndarray, np.ndarray],
+    aux_c: np.ndarray,
+    aux_s: np.ndarray,
+) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Rows for ``xb - xa = u c - v s`` and ``yb - ya = u s + v c`` (c, s = cos, sin ta).
+
+    Each product has a McCormick envelope (:func:`_product_rows`: two lower and two upper
+    planes); a sum or difference of two products is bounded by every pair of planes, so
+    no column is needed for the products themselves.
+    """
+    u, v = box[relative[:, ANGLE]], box[relative[:, LENGTH]]
+    c_box, s_box = trig
+    xa, ya, xb, yb = (relative[:, k] for k in (XA, YA, XB, YB))
+    uc, vs = _product_rows(u, c_box), _product_rows(v, s_box)
+    us, vc = _product_rows(u, s_box), _product_rows(v, c_box)
+    ucol, vcol = relative[:, ANGLE], relative[:, LENGTH]
+    out = []
+    lower, upper = (0, 1), (2, 3)  # the planes of _product_rows below and above a product
+    # x: D = P1 - P2, P1 = u c, P2 = v s: D >= low(P1) - up(P2) and D <= up(P1) - low(P2)
+    # y: D = P3 + P4, P3 = u s, P4 = v c: D >= low(P3) + low(P4) and D <= up(P3) + up(P4)
+    for b, a, first, second, sign, cols in (
+        (xb, xa, uc, vs, -1.0, (ucol, aux_c, vcol, aux_s)),
+        (yb, ya, us, vc, 1.0, (ucol, aux_s, vcol, aux_c)),
+    ):
+        for side in (0, 1):
+            mine = lower if side == 0 else upper
+            theirs = mine if sign > 0 else (upper if side == 0 else lower)
+            for i in mine:
+                a1, t1, k1 = first[i]
+                for j in theirs:
+                    a2, t2, k2 = second[j]
+                    constant = (ia.add if sign > 0 else ia.sub)(
+                        _point(k1[:, side]), _point(k2[:, 1 - side if sign < 0 else side])
+                    )
+                    bounds = np.full((len(relative), 2), np.inf)
+                    bounds[:, 0] = -np.inf
+                    bounds[:, side] = constant[:, side]
+                    vals = np.column_stack(
+                        [np.ones(len(b)), -np.ones(len(b)), -a1, -t1, -sign * a2, -sign * t2]
+                    )
+                    out.append((np.column_stack([b, a, *cols]), vals, bounds))
+    return out
 
 
 def _turn_rows(

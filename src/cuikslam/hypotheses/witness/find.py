@@ -37,11 +37,12 @@ from cuikslam.results.solution import NOT_REFUTED, PROVEN, Solution
 
 _HOPELESS = 0.5
 """A hinge residual (in half-widths) beyond which aiming closer to the bounds is not tried."""
-MAX_EVALUATIONS = 2000
+MAX_EVALUATIONS = 20_000
 """Residual evaluations (each with its Jacobian) one hypothesis' search may use at most."""
 CENTRE_EVALUATIONS = 50
 """Evaluations of the least-squares estimate that starts each local search."""
 MARGIN_EVALUATIONS = 200
+TR_SOLVER = "exact"
 """Evaluations of each hinge (aimed margins) least-squares run."""
 
 
@@ -107,10 +108,11 @@ def _polish_equalities(model: HypothesisModel, p: np.ndarray, iterations: int = 
 
 
 def _solve_margins(
-    model: HypothesisModel, x0: np.ndarray, meter: _Meter
+    model: HypothesisModel, x0: np.ndarray, meter: _Meter, centre: bool = True
 ) -> tuple[np.ndarray, float, np.ndarray | None]:
-    """Least squares from ``x0``: the centre estimate, then the hinge residuals of the
-    aimed margins; returns (params, largest hinge residual, verified box or None)."""
+    """Least squares from ``x0``: the centre estimate (when ``centre``), then the hinge
+    residuals of the aimed margins; returns (params, largest hinge residual, verified box
+    or None)."""
     free = model.free
     margin = aim_margin(model.param_lo, model.param_hi)
     lb = np.where(np.isfinite(model.param_lo), model.param_lo + margin, -np.inf)[free]
@@ -137,6 +139,7 @@ def _solve_margins(
         result = least_squares(
             lambda z: both(z)[0], z0, jac=lambda z: both(z)[1], bounds=(lb, ub),
             method="trf", xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=max_nfev,
+            tr_solver=TR_SOLVER,
         )  # fmt: skip
         return result.x
 
@@ -151,7 +154,8 @@ def _solve_margins(
     # the least-squares estimate first (smooth, so it escapes the hinges' flat spots), then
     # the margins from there; when the aimed margins do not fit together (a thin solution
     # set), aim closer to the bounds
-    z = least_squares_on(model.centre_residuals, z, CENTRE_EVALUATIONS)
+    if centre:
+        z = least_squares_on(model.centre_residuals, z, CENTRE_EVALUATIONS)
     candidates = [_polish_equalities(model, full(z))]
     for scale in (1.0, 0.1, 0.01):
 
@@ -169,6 +173,92 @@ def _solve_margins(
     box = verified_box(model, candidates[0])
     best = candidates[0] if box is not None else min(candidates, key=shortfall)
     return best, shortfall(best), box
+
+
+class _Search:
+    """One hypothesis' witness search, resumable so that :func:`certify` can share its
+    budget round-robin: the boxes' centres first, then the interval midpoints, then random
+    points of the parameter intervals. The first two start with the least-squares estimate
+    of the centre; the random ones go straight to the margins, since the centre estimate
+    would pull them all back to one basin (a thin solution set far from the box centres,
+    e.g. a new landmark beside a look-alike, is found only from a varied start)."""
+
+    def __init__(
+        self,
+        model: HypothesisModel,
+        poses_box: PoseBoxes,
+        landmarks_box: LandmarkBoxes,
+        seed: int,
+        deadline: float | None,
+        max_evaluations: int,
+        statistics: WitnessStatistics,
+    ) -> None:
+        self.model = model
+        self.poses_box = poses_box
+        self.landmarks_box = landmarks_box
+        self.rng = np.random.default_rng(seed)
+        self.deadline = deadline
+        self.stats = statistics
+        self.meter = _Meter(deadline, max_evaluations, statistics)
+        self.tried = 0
+        self.best: tuple[float, np.ndarray] | None = None
+        self.point: WitnessPoint | None = None
+        self.box: np.ndarray | None = None
+        self.finished = bool(model.problems)
+        model.focus_sensor(poses_box, landmarks_box)
+        if poses_box is None and landmarks_box is None:
+            self.tried = 1  # no box centres to start from
+
+    def _start(self, k: int) -> tuple[np.ndarray, bool]:
+        m = self.model
+        if k == 0:
+            return m.initial_params(
+                self.poses_box, self.landmarks_box, deadline=self.deadline
+            ), True
+        if k == 1:
+            return m.initial_params(deadline=self.deadline), True
+        return m.initial_params(
+            None, self.landmarks_box, rng=self.rng, deadline=self.deadline
+        ), False
+
+    def run(self, starts: int) -> None:
+        """Try up to ``starts`` more starting points (fewer when it succeeds or a budget
+        runs out, which finishes the search)."""
+        stats, model = self.stats, self.model
+        with blas_single_thread(), np.errstate(all="ignore"):
+            for _ in range(starts):
+                if self.finished:
+                    return
+                if expired(self.deadline):
+                    stats.out_of_time = self.finished = True
+                    return
+                stats.starts += 1
+                self.tried += 1
+                try:
+                    x0, centre = self._start(self.tried - 1)
+                    p, residual, box = _solve_margins(model, x0, self.meter, centre)
+                except OutOfTime:
+                    stats.out_of_time = self.finished = True
+                    return
+                except _OutOfWork:
+                    stats.out_of_work = self.finished = True
+                    return
+                except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+                    # a numerical failure of the optimiser (it only proposes points): try the
+                    # next start; the hypothesis at worst stays 'not refuted'
+                    stats.failed_starts += 1
+                    continue
+                if box is not None:
+                    self.point, self.box, self.finished = model.point(p, residual), box, True
+                    return
+                if self.best is None or residual < self.best[0]:
+                    self.best = (residual, p)
+
+    def unverified(self) -> WitnessPoint | None:
+        """The best point when it meets every aimed margin in floating point."""
+        if self.best is not None and self.best[0] <= 1e-12:
+            return self.model.point(self.best[1], self.best[0])
+        return None
 
 
 def find_point(
@@ -207,43 +297,11 @@ def find_point(
         (point, verified parameter box), or (unverified point, None), or (None, None).
     """
     stats = statistics if statistics is not None else WitnessStatistics()
-    if model.problems:
-        return None, None
-    meter = _Meter(deadline, max_evaluations, stats)
-    rng = np.random.default_rng(seed)
-    starts = []
-    if poses_box is not None or landmarks_box is not None:
-        starts.append(lambda: model.initial_params(poses_box, landmarks_box, deadline=deadline))
-    starts.append(lambda: model.initial_params(deadline=deadline))
-    for _ in range(restarts):
-        starts.append(lambda: model.initial_params(None, landmarks_box, rng=rng, deadline=deadline))
-    best: tuple[float, np.ndarray] | None = None
-    with blas_single_thread(), np.errstate(all="ignore"):
-        for start in starts:
-            if expired(deadline):
-                stats.out_of_time = True
-                break
-            stats.starts += 1
-            try:
-                p, residual, box = _solve_margins(model, start(), meter)
-            except OutOfTime:
-                stats.out_of_time = True
-                break
-            except _OutOfWork:
-                stats.out_of_work = True
-                break
-            except (ValueError, ArithmeticError, np.linalg.LinAlgError):
-                # a numerical failure of the optimiser (it only proposes points): try the
-                # next start; the hypothesis at worst stays 'not refuted'
-                stats.failed_starts += 1
-                continue
-            if box is not None:
-                return model.point(p, residual), box
-            if best is None or residual < best[0]:
-                best = (residual, p)
-    if best is not None and best[0] <= 1e-12:
-        return model.point(best[1], best[0]), None
-    return None, None
+    search = _Search(model, poses_box, landmarks_box, seed, deadline, max_evaluations, stats)
+    search.run(2 + restarts)
+    if search.point is not None:
+        return search.point, search.box
+    return search.unverified(), None
 
 
 def find_witness(
@@ -280,7 +338,7 @@ def certify(
     solution: Solution,
     *,
     seed: int = 0,
-    restarts: int = 2,
+    restarts: int | None = None,
     max_hypotheses: int | None = None,
     use_sensor: bool = True,
     deadline: float | None = None,
@@ -289,47 +347,51 @@ def certify(
     """Mark every hypothesis of ``solution`` whose consistency is proven.
 
     For each hypothesis (the first ``max_hypotheses`` when given), the search of
-    :func:`find_witness` (started from its boxes, then midpoints, then ``restarts`` random
-    points) and :func:`verify_witness`; on success ``status`` becomes ``PROVEN`` and
-    ``witness`` holds ``poses_xyt`` (rows in the hypothesis' ``pose_ids`` order) and
-    ``landmarks_xy`` (rows in its ``landmark_ids`` order); otherwise they become (or stay)
-    ``NOT_REFUTED`` without a witness. Hypotheses beyond ``max_hypotheses`` are untouched.
-    A proven hypothesis takes well under a second; one that is not proven costs every
-    start (about 1 s for the paper's log).
+    :func:`find_witness` (started from its boxes, then midpoints, then random points) and
+    :func:`verify_witness`; on success ``status`` becomes ``PROVEN`` and ``witness`` holds
+    ``poses_xyt`` (rows in the hypothesis' ``pose_ids`` order) and ``landmarks_xy`` (rows in
+    its ``landmark_ids`` order); otherwise they become (or stay) ``NOT_REFUTED`` without a
+    witness. Hypotheses beyond ``max_hypotheses`` are untouched.
 
-    Each hypothesis' search stops after ``max_evaluations`` residual evaluations, and the
-    whole certification at ``deadline`` (a :func:`time.perf_counter` value; hypotheses not
-    reached stay ``NOT_REFUTED``). Returns the search's :class:`WitnessStatistics`; they
-    are also recorded in ``solution.statistics`` (``witness_starts``,
+    The hypotheses share the budget round-robin: every one gets its first two starts (most
+    consistent hypotheses are proven by the first), then the unproven ones get random
+    starts in growing rounds, until each is proven, has used ``max_evaluations`` residual
+    evaluations (or ``2 + restarts`` starts, when given), or ``deadline`` (a
+    :func:`time.perf_counter` value) passes. Returns the search's
+    :class:`WitnessStatistics`; they are also recorded in ``solution.statistics``
+    (``proven_hypotheses``, ``undecided_hypotheses``, ``witness_starts``,
     ``witness_evaluations``, ``witness_budget_exhausted``), with a message in
-    ``solution.messages`` when a budget ran out before a hypothesis was proven.
+    ``solution.messages`` naming the hypotheses left undecided and why.
     """
     start = time.perf_counter()
-    proven = 0
     stats = WitnessStatistics()
-    unfinished = []
     chosen = solution.hypotheses if max_hypotheses is None else solution.hypotheses[:max_hypotheses]
-    for rank, h in enumerate(chosen, start=1):
-        if expired(deadline):
-            stats.out_of_time = True
-            h.status, h.witness = NOT_REFUTED, None
-            unfinished.append(rank)
-            continue
+    most = None if restarts is None else 2 + restarts
+    searches = []
+    for h in chosen:
         model = HypothesisModel(log, h.assignment, use_sensor=use_sensor)
         poses_box = {pid: h.poses[k] for k, pid in enumerate(h.pose_ids)}
         landmarks_box = {lid: h.landmarks[k] for k, lid in enumerate(h.landmark_ids)}
-        mine = WitnessStatistics()
-        point, box = find_point(
-            model, poses_box, landmarks_box, seed, restarts,
-            deadline=deadline, max_evaluations=max_evaluations, statistics=mine,
-        )  # fmt: skip
-        _add(stats, mine)
-        if point is None or box is None:
-            if mine.budget_exhausted:
-                unfinished.append(rank)
-            h.status = NOT_REFUTED
-            h.witness = None
+        searches.append(
+            _Search(model, poses_box, landmarks_box, seed, deadline, max_evaluations, stats)
+        )
+    batch = 2
+    while True:
+        open_ = [s for s in searches if not s.finished and (most is None or s.tried < most)]
+        if not open_:
+            break
+        for search in open_:
+            search.run(batch if most is None else min(batch, most - search.tried))
+        batch = min(2 * batch, 32)
+    proven = 0
+    unfinished = []
+    for rank, (h, search) in enumerate(zip(chosen, searches, strict=True), start=1):
+        if search.box is None:
+            h.status, h.witness = NOT_REFUTED, None
+            unfinished.append(rank)
             continue
+        point = search.point
+        assert point is not None
         poses = np.full((len(h.pose_ids), 3), np.nan)
         for k, pid in enumerate(h.pose_ids):
             if pid in point.pose_ids:
@@ -343,25 +405,35 @@ def certify(
         proven += 1
     solution.timings["certify_s"] = time.perf_counter() - start
     solution.statistics["proven_hypotheses"] = proven
+    solution.statistics["undecided_hypotheses"] = len(unfinished)
     solution.statistics["witness_starts"] = stats.starts
     solution.statistics["witness_evaluations"] = stats.evaluations
     solution.statistics["witness_failed_starts"] = stats.failed_starts
-    solution.statistics["witness_budget_exhausted"] = int(bool(unfinished))
+    solution.statistics["witness_budget_exhausted"] = int(stats.budget_exhausted)
     if unfinished:
-        which = (
-            "time budget" if stats.out_of_time else f"work limit ({max_evaluations} evaluations)"
+        why = (
+            "its time budget"
+            if stats.out_of_time
+            else f"its work limit ({max_evaluations} evaluations per hypothesis)"
+            if stats.out_of_work
+            else "its starts"
         )
-        ranks = ", ".join(str(r) for r in unfinished)
         solution.messages.append(
-            f"the witness search stopped at its {which}: hypothesis {ranks} stays "
-            "'not refuted' (consistent as far as narrowing can tell, but not proven)"
+            f"the witness search stopped at {why}: {len(unfinished)} of {len(chosen)} "
+            f"hypotheses undecided (not refuted, not proven): {_ranges(unfinished)}"
         )
     return stats
 
 
-def _add(total: WitnessStatistics, one: WitnessStatistics) -> None:
-    total.starts += one.starts
-    total.evaluations += one.evaluations
-    total.out_of_time |= one.out_of_time
-    total.out_of_work |= one.out_of_work
-    total.failed_starts += one.failed_starts
+def _ranges(ranks: list[int]) -> str:
+    """``[1, 2, 3, 7]`` as ``"1-3, 7"``."""
+    parts = []
+    first = last = ranks[0]
+    for r in ranks[1:]:
+        if r == last + 1:
+            last = r
+            continue
+        parts.append(f"{first}-{last}" if last > first else str(first))
+        first = last = r
+    parts.append(f"{first}-{last}" if last > first else str(first))
+    return ", ".join(parts)

@@ -333,6 +333,8 @@ class HypothesisModel(Starts):
         self.sensor = log.sensor if use_sensor else None
         self.observed = np.zeros((n, m), dtype=bool)
         self.observed[self.obs_pose, self.obs_landmark] = True
+        self._sensor_rows = np.arange(n * m)
+        """The (pose, landmark) pairs, flattened, whose sensor violation the optimisers see."""
         self._rows = np.arange(len(obs_pose))
         self._memo: tuple[bytes, np.ndarray, np.ndarray | None] | None = None
 
@@ -493,6 +495,29 @@ class HypothesisModel(Starts):
         J = st[:, None] * jdx - ct[:, None] * jdy + (ddx * ct + ddy * st)[:, None] * JP[t_, 2]
         return f, J.reshape(-1, self.n_params)
 
+    def focus_sensor(
+        self, poses_box: PoseBoxes, landmarks_box: LandmarkBoxes, slack: float = 1.0
+    ) -> None:
+        """Let the optimisers see only the sensor pairs that can matter: observed pairs, and
+        pairs whose boxes come within ``max_range + slack`` of each other (or lack a box).
+        A speed-up only: :func:`~.verify.verify_witness` still checks every pair."""
+        n, m = self.n_poses, self.n_landmarks
+        if self.sensor is None or not math.isfinite(self.sensor.max_range) or n * m == 0:
+            return
+        P, L = self.pose_boxes(poses_box), self.landmark_boxes(landmarks_box)
+        if P is None or L is None:
+            return
+        with np.errstate(invalid="ignore"):
+            gap_x = np.maximum(
+                L[None, :, 0, 0] - P[:, None, 0, 1], P[:, None, 0, 0] - L[None, :, 0, 1]
+            )
+            gap_y = np.maximum(
+                L[None, :, 1, 0] - P[:, None, 1, 1], P[:, None, 1, 0] - L[None, :, 1, 1]
+            )
+            gap = np.hypot(np.maximum(gap_x, 0.0), np.maximum(gap_y, 0.0))
+            near = ~(gap > self.sensor.max_range + slack)  # NaN (no box) counts as near
+        self._sensor_rows = np.flatnonzero(near | self.observed)
+
     @np.errstate(all="ignore")  # overflow is clipped (see _numeric.finite)
     def sensor_residuals(
         self, p: np.ndarray, jacobian: bool = False
@@ -539,31 +564,44 @@ class HypothesisModel(Starts):
         res = np.where(obs, seen_res, unseen_res)
         res = np.where(np.isfinite(res), res, 0.0)
         if not jacobian:
-            return res.ravel(), None
+            return res.ravel()[self._sensor_rows], None
         assert JP is not None
-        # derivatives of d and |beta| for every pair
-        Jd = -(dx / d_safe)[..., None] * JP[:, None, 0] - (dy / d_safe)[..., None] * JP[:, None, 1]
-        Jb = (dy / r2)[..., None] * JP[:, None, 0] - (dx / r2)[..., None] * JP[:, None, 1]
-        Jb = Jb - JP[:, None, 2]
-        jj = np.arange(m)
-        cx, cy = self._landmark_columns(jj)
-        Jd[:, jj, cx] += dx / d_safe
-        Jd[:, jj, cy] += dy / d_safe
-        Jb[:, jj, cx] -= dy / r2
-        Jb[:, jj, cy] += dx / r2
-        Jab = np.sign(beta)[..., None] * Jb
-        Jnear = Jd - Jd[np.arange(n), nearest_j][:, None, :]
+        kept = self._sensor_rows
+        # derivatives only for the violated pairs (the others' rows are zero)
+        J = np.zeros((kept.size, self.n_params))
+        where = np.flatnonzero(res.ravel()[kept] > 0)
+        act = kept[where]
+        if act.size == 0:
+            return res.ravel()[kept], J
+        i, j = np.divmod(act, m)
+        rows = np.arange(act.size)
+
+        def d_jacobian(jj: np.ndarray) -> np.ndarray:
+            """Rows of the derivative of d(pose i, landmark jj)."""
+            u, v, s_ = dx[i, jj], dy[i, jj], d_safe[i, jj]
+            out = -(u / s_)[:, None] * JP[i, 0] - (v / s_)[:, None] * JP[i, 1]
+            cx, cy = self._landmark_columns(jj)
+            out[rows, cx] += u / s_
+            out[rows, cy] += v / s_
+            return out
+
+        Jd = d_jacobian(j)
+        u, v, q = dx[i, j], dy[i, j], r2[i, j]
+        Jb = (v / q)[:, None] * JP[i, 0] - (u / q)[:, None] * JP[i, 1] - JP[i, 2]
+        cx, cy = self._landmark_columns(j)
+        Jb[rows, cx] -= v / q
+        Jb[rows, cy] += u / q
+        Jab = np.sign(beta[i, j])[:, None] * Jb
+        Jnear = Jd - d_jacobian(nearest_j[i])
         Jseen = (
-            (in_range > 0)[..., None] * Jd
-            + (in_fov > 0)[..., None] * Jab
-            + (in_near > 0)[..., None] * Jnear
+            (in_range[i, j] > 0)[:, None] * Jd
+            + (in_fov[i, j] > 0)[:, None] * Jab
+            + (in_near[i, j] > 0)[:, None] * Jnear
         )
-        Junseen = np.where((unseen_kind == 0)[..., None], -Jd, 0.0)
-        Junseen = Junseen + np.where((unseen_kind == 1)[..., None], -Jab, 0.0)
-        Junseen = Junseen + np.where((unseen_kind == 2)[..., None], -Jnear, 0.0)
-        Junseen = Junseen * (unseen_res > 0)[..., None]
-        J = np.where(obs[..., None], Jseen, Junseen)
-        return res.ravel(), finite(J.reshape(n * m, self.n_params), nan=0.0)
+        kind = unseen_kind[i, j][:, None]
+        Junseen = np.where(kind == 0, -Jd, np.where(kind == 1, -Jab, -Jnear))
+        J[where] = np.where(obs[i, j][:, None], Jseen, Junseen)
+        return res.ravel()[kept], finite(J, nan=0.0)
 
     def point(self, p: np.ndarray, residual: float = 0.0) -> WitnessPoint:
         """The :class:`WitnessPoint` of a parameter vector."""
@@ -610,6 +648,26 @@ class HypothesisModel(Starts):
         return out, finite(np.concatenate([Jc, Jp, Jf]), nan=0.0)
 
     @np.errstate(all="ignore")  # overflow is clipped (see _numeric.finite)
+    def _sensor_per_pose(
+        self, p: np.ndarray, jacobian: bool
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """The sensor violations gathered into one residual per pose, the root of their sum
+        of squares: the same least-squares objective in far fewer rows (the optimiser's
+        cost grows with the rows times the parameters squared)."""
+        sr, Js = self.sensor_residuals(p, jacobian)
+        if sr.size == 0:
+            return sr, Js
+        pose = self._sensor_rows // self.n_landmarks
+        norm = np.sqrt(np.bincount(pose, weights=sr * sr, minlength=self.n_poses))
+        if not jacobian:
+            return norm, None
+        assert Js is not None
+        grad = np.zeros((self.n_poses, self.n_params))
+        np.add.at(grad, pose, sr[:, None] * Js)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            grad = np.where(norm[:, None] > 0, grad / norm[:, None], 0.0)
+        return norm, grad
+
     def margin_residuals(
         self, p: np.ndarray, jacobian: bool = False, scale_margin: float = 1.0
     ) -> tuple[np.ndarray, np.ndarray | None]:
@@ -627,7 +685,7 @@ class HypothesisModel(Starts):
         above = np.where(np.isfinite(hi), above, -np.inf)
         res = np.maximum(below, 0.0) + np.maximum(above, 0.0)
         f, Jf = self.equalities(p, jacobian)
-        sr, Js = self.sensor_residuals(p, jacobian)
+        sr, Js = self._sensor_per_pose(p, jacobian)
         out = finite(np.concatenate([res, f, sr]))
         if not jacobian:
             return out, None
