@@ -267,3 +267,28 @@ def test_wide_heading_boxes_contain_every_heading() -> None:
     assert check_truth(full, [0], [[0, 0, "12345.678"]]).ok
     empty = hypothesis([[0, 0], [0, 0], [1.0, 0.0]], [[0, 1], [0, 1]])
     assert not check_truth(empty, [0], [[0, 0, "0.5"]]).ok
+
+
+def test_cli_truth_check_is_exact(tmp_path: Path) -> None:
+    """``cuikslam solve --truth`` compares the exact truth: the decimal 0.1 is not in the box
+    [0.1, 0.1] of the double 0.1 (a float comparison would call it inside)."""
+    log = tmp_path / "trip.jsonl"
+    log.write_text(
+        '{"type": "prior", "pose": 0, "x": [0.1, 0.1], "y": [0.0, 0.0], "theta": [0.0, 0.0]}\n'
+        '{"type": "odometry", "from": 0, "to": 1, "turn": [0.0, 0.0], "distance": [1.0, 1.0]}\n'
+    )
+    truth = tmp_path / "trip.truth.json"
+    truth.write_text(
+        '{"poses": {"0": ["0.1", "0", "0"], "1": ["1.1", "0", "0"]}, "landmarks": {},'
+        ' "obs_truth": []}'
+    )
+    result = subprocess.run(
+        [sys.executable, "-m", "cuikslam.cli.main", "solve", str(log), "--truth", str(truth)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert "Traceback" not in result.stderr, result.stderr
+    assert result.returncode == 1, result.stdout[-1500:]
+    assert "pose 0 x=0.1 (decimal) not in [0.1, 0.1]" in result.stdout
