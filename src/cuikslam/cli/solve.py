@@ -142,8 +142,8 @@ def report_truth(
         return True
     h = solution.hypotheses[rank - 1]
     names = dict(zip(h.assignment, truth.assignment, strict=True))
-    landmark_xy = {ours: truth.landmark_xy(theirs) for ours, theirs in names.items()}
-    report = check_truth(h, truth.pose_ids, truth.poses_xyt, landmark_xy)
+    landmark_xy = {ours: truth.exact_landmark(theirs) for ours, theirs in names.items()}
+    report = check_truth(h, truth.pose_ids, truth.exact_poses(), landmark_xy)
     if not report.ok:
         console.print(f"truth check: {len(report.misses)} boxes miss the truth:")
         for miss in report.misses[:20]:
