@@ -51,21 +51,29 @@ from cuikslam.results.solution import Hypothesis, Solution
 __all__ = ["read_result_file", "solution_to_json", "write_result_csv", "write_result_file"]
 
 
-def _bounds(pair: np.ndarray) -> list[float | None]:
-    """JSON has no infinity: unbounded sides are written as null."""
-    return [None if math.isinf(v) else float(v) for v in pair]
+def _bounds(boxes: np.ndarray) -> list:
+    """``boxes`` as nested lists of floats; JSON has no infinity: unbounded sides are null."""
+    boxes = np.asarray(boxes, dtype=np.float64)
+    unbounded = np.isinf(boxes)
+    if not unbounded.any():
+        return boxes.tolist()
+    listed = boxes.astype(object)
+    listed[unbounded] = None
+    return listed.tolist()
 
 
 def _hypothesis_to_json(h: Hypothesis, rank: int) -> dict[str, Any]:
     doc: dict[str, Any] = {
         "assignment": list(h.assignment),
         "poses": {
-            str(p): {"x": _bounds(b[0]), "y": _bounds(b[1]), "theta": _bounds(b[2])}
-            for p, b in zip(h.pose_ids, h.poses, strict=True)
+            str(p): {"x": b[0], "y": b[1], "theta": b[2]}
+            for p, b in zip(h.pose_ids, _bounds(h.poses), strict=True)
         },
         "landmarks": {
-            m: {"class": c, "x": _bounds(b[0]), "y": _bounds(b[1])}
-            for m, c, b in zip(h.landmark_ids, h.landmark_classes, h.landmarks, strict=True)
+            m: {"class": c, "x": b[0], "y": b[1]}
+            for m, c, b in zip(
+                h.landmark_ids, h.landmark_classes, _bounds(h.landmarks), strict=True
+            )
         },
         "status": h.status,
         "consistency": h.consistency,
@@ -122,6 +130,10 @@ def _finite(solution: Solution) -> bool:
 
 def _read_bounds(value: Any, where: str) -> tuple[float, float]:
     """``[lo, hi]`` of finite numbers (``null`` = unbounded side) with ``lo <= hi``."""
+    if type(value) is list and len(value) == 2:  # the common case, decided at once
+        lo, hi = value
+        if type(lo) is float and type(hi) is float and -math.inf < lo <= hi < math.inf:
+            return lo, hi
     shown = json.dumps(value)
     shown = shown if len(shown) <= 60 else shown[:57] + "..."
     if not (isinstance(value, list) and len(value) == 2):
