@@ -209,3 +209,11 @@ def test_lp_tightening_keeps_the_truth_of_relative_worlds(data):
     lo, hi, feasible = tighten(world.graph.factor_table(), result.lo, result.hi, targets)
     assert feasible, world.description
     assert world.lost(lo, hi) == [], world.description
+
+
+def test_offsets_with_unknown_correspondence_are_refused_with_the_line():
+    from cuikslam.solver import solve
+
+    log = parse_log_lines([PRIOR, OFFSET_OBS.replace(', "landmark": "P0"', "")], path="o.jsonl")
+    with pytest.raises(LogFormatError, match=r"o\.jsonl:2: observation offsets are supported"):
+        solve(log, certify_limit=0)

@@ -40,6 +40,7 @@ from cuikslam.graph.encoding import (
 )
 from cuikslam.interval._periodic import periodic_meet
 from cuikslam.interval._rounding import PI_HI, TWO_PI_HI
+from cuikslam.log.errors import LogFormatError
 from cuikslam.log.records import (
     LandmarkPrior,
     Log,
@@ -192,9 +193,11 @@ def build_problem(log: Log) -> Problem:
             rows.append((ROTATION, a, a + 1, a + 2, c, c + 1, c + 2, m + 2, -1))
         elif isinstance(record, Observation):
             if record.offset is not None:
-                raise ValueError(
-                    f"{log.path}:{record.line}: observation offsets are supported with known "
-                    "correspondence only (give every observation its landmark id)"
+                raise LogFormatError(
+                    log.path,
+                    record.line,
+                    "observation offsets are supported with known correspondence only "
+                    "(give every observation its landmark id)",
                 )
             a = pose(record.pose)
             bearing = (-PI_HI, PI_HI) if record.bearing is None else record.bearing
