@@ -189,3 +189,24 @@ def test_a_refuted_result_is_refused(tmp_path: Path, capsys: pytest.CaptureFixtu
     result, truth_path = _write(tmp_path, Solution([]), _truth_doc({"0": [0, 0, 0]}, []))
     assert main(["evaluate", result, "--truth", truth_path]) == 2
     assert "no hypothesis to evaluate" in capsys.readouterr().err
+
+
+def test_the_pose_hull_over_every_survivor_is_checked_too() -> None:
+    # The true correspondence is not reported (1 of 5 survivors shown), but the result's
+    # pose hull over every survivor still holds each true pose; a hull that misses one is
+    # a failure once the search is complete.
+    from cuikslam.simulate.truth import _truth_from_json
+
+    truth = _truth_from_json(
+        _truth_doc({"0": [0, 0, 0], "1": [1, 0, 0], "2": [2, 0, 0]}, ["A", "B", "A"])
+    )
+    wrong = _hypothesis(["L1", "L1", "L1"], ["L1"])
+    hull = wrong.poses.copy()
+    stats = {"survivors": 5}
+    ev = evaluate(Solution([wrong], statistics=stats, correspondence={"pose_hull": hull}), truth)
+    assert (ev.true_rank, ev.hull_checked, ev.hull_inside) == (None, 3, 3)
+    assert ev.guarantee_held is None  # the true one is among the 4 unreported
+    hull[1, 0] = [1.5, 2.0]  # pose 1's truth x = 1 now misses the hull
+    ev = evaluate(Solution([wrong], statistics=stats, correspondence={"pose_hull": hull}), truth)
+    assert ev.hull_inside == 2 and ev.guarantee_held is False
+    assert evaluation_to_json(ev)["pose_hull"] == {"with_truth": 3, "inside": 2}

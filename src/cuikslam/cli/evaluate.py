@@ -60,6 +60,11 @@ def print_evaluation(ev: Evaluation, console: Console) -> None:
     head.add_row("poses with truth inside their box", _pct(ev.poses_inside, ev.poses_with_truth))
     if ev.poses_without_truth:
         head.add_row("poses without truth (not counted)", str(ev.poses_without_truth))
+    if ev.hull_checked is not None and not ev.evaluated_is_true:
+        head.add_row(
+            "poses with truth inside their hull over all survivors",
+            _pct(ev.hull_inside, ev.hull_checked),
+        )
     if ev.truth_poses_not_in_result:
         head.add_row("truth poses not in the result", str(ev.truth_poses_not_in_result))
     head.add_row(

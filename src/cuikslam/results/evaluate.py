@@ -94,6 +94,10 @@ class Evaluation:
     correct_associations: int | None
     """Observations the best-ranked hypothesis associates correctly (None: no truth)."""
     notes: list[str] = field(default_factory=list)
+    hull_inside: int | None = None
+    """Poses whose truth lies in their box whatever the correspondence (the result's
+    ``correspondence.pose_hull``, over every survivor); None without that hull."""
+    hull_checked: int | None = None
 
     @property
     def poses_with_truth(self) -> int:
@@ -114,9 +118,12 @@ class Evaluation:
     @property
     def guarantee_held(self) -> bool | None:
         """False when the guarantee visibly failed: the true hypothesis has a box missing
-        its truth, or a complete search reported every survivor and the true
-        correspondence is not among them. None when nothing can be said (the true
+        its truth, a complete search reported every survivor and the true
+        correspondence is not among them, or a complete search's pose hull over every
+        survivor misses a true pose. None when nothing can be said (the true
         correspondence was not reported: unreported or the search was incomplete)."""
+        if self.complete and self.hull_checked and self.hull_inside < self.hull_checked:
+            return False  # the hull over every survivor misses a true pose
         sole = self.complete and self.survivors == self.reported == 1
         if self.evaluated_is_true or (sole and self.correct_associations is None):
             return not self.misses  # a sole survivor of a complete search is the true one
@@ -155,6 +162,16 @@ class Evaluation:
                 }
             )
         return out
+
+
+def _pose_inside(pose_id: int, box: np.ndarray, value: tuple, misses: list[str]) -> bool:
+    """Whether the exact true pose ``value`` lies in ``box`` (heading modulo 2π); each
+    coordinate outside adds a line to ``misses``."""
+    before = len(misses)
+    _check_xy(f"pose {pose_id}", box, value, misses)
+    if not _angle_inside(box[2], Fraction(value[2])):
+        misses.append(f"pose {pose_id} theta={_show(value[2])} not in {box[2].tolist()} (mod 2pi)")
+    return len(misses) == before
 
 
 def _widths(boxes: np.ndarray) -> np.ndarray:
@@ -248,13 +265,19 @@ def evaluate(
         if value is None:
             inside.append(None)
             continue
-        before = len(misses)
-        _check_xy(f"pose {pose_id}", box, value, misses)
-        if not _angle_inside(box[2], Fraction(value[2])):
-            misses.append(
-                f"pose {pose_id} theta={_show(value[2])} not in {box[2].tolist()} (mod 2pi)"
-            )
-        inside.append(len(misses) == before)
+        inside.append(_pose_inside(pose_id, box, value, misses))
+
+    hull_inside = hull_checked = None
+    hull = (solution.correspondence or {}).get("pose_hull")
+    if hull is not None:
+        boxes = np.asarray(hull, dtype=float)
+        if boxes.shape == (len(best.pose_ids), 3, 2):
+            hull_inside = hull_checked = 0
+            for pose_id, box in zip(best.pose_ids, boxes, strict=True):
+                value = truth_of_pose.get(pose_id)
+                if value is not None:
+                    hull_checked += 1
+                    hull_inside += _pose_inside(pose_id, box, value, [])
 
     notes: list[str] = []
     mapping = _landmark_truth(h, truth, named)
@@ -295,6 +318,8 @@ def evaluate(
         observations=n_obs,
         correct_associations=correct,
         notes=notes,
+        hull_inside=hull_inside,
+        hull_checked=hull_checked,
     )
 
 
@@ -339,6 +364,7 @@ def evaluation_to_json(ev: Evaluation) -> dict[str, Any]:
             {k: (_number(v) if isinstance(v, float) else v) for k, v in seg.items()}
             for seg in ev.over_time()
         ],
+        "pose_hull": {"with_truth": ev.hull_checked, "inside": ev.hull_inside},
         "association": {
             "observations": ev.observations,
             "correct_by_best": ev.correct_associations,
