@@ -201,12 +201,13 @@ def check_truth(
     """
     misses: list[str] = []
     checked = 0
+    row_of = {p: i for i, p in enumerate(hypothesis.pose_ids)}
     for pose_id, truth in zip(pose_ids, poses_xyt, strict=True):
-        if pose_id not in hypothesis.pose_ids:
+        if pose_id not in row_of:
             continue
-        box = hypothesis.pose(pose_id)
+        box = hypothesis.poses[row_of[pose_id]]
         checked += _check_xy(f"pose {pose_id}", box, truth, misses) + 1
-        if not _angle_inside(box[2], _exact(truth[2])):
+        if not (_float_inside(box[2], truth[2]) or _angle_inside(box[2], _exact(truth[2]))):
             misses.append(
                 f"pose {pose_id} theta={_show(truth[2])} not in {box[2].tolist()} (mod 2pi)"
             )
@@ -228,9 +229,22 @@ def _at_most(a: float | Fraction, b: float | Fraction) -> bool:
     return _exact(a) <= _exact(b)
 
 
+def _float_inside(bounds: np.ndarray, value: object) -> bool:
+    """``lo <= value <= hi`` decided at once when ``value`` is a float or a Fraction
+    (Python compares them with a float exactly); False otherwise or when it lies
+    outside (then the exact test decides, e.g. modulo 2π for an angle)."""
+    if isinstance(value, np.floating):
+        value = value.item()
+    if type(value) not in (float, Fraction):
+        return False
+    return float(bounds[0]) <= value <= float(bounds[1])
+
+
 def _check_xy(label: str, box: np.ndarray, xy: Sequence[ExactLike], misses: list[str]) -> int:
     """Append a line to ``misses`` for each of x, y outside its box; return 2 (bounds checked)."""
     for j, name in enumerate(("x", "y")):
+        if _float_inside(box[j], xy[j]):
+            continue
         lo, hi = float(box[j, 0]), float(box[j, 1])
         value = _exact(xy[j])
         if not (lo <= hi and _at_most(lo, value) and _at_most(value, hi)):
