@@ -248,3 +248,26 @@ def test_cli_exits_1_when_a_complete_search_lost_the_truth(capfd, tmp_path: Path
         assert "truth check: the true correspondence is not among" in out
     status, out, _ = run_main(capfd, "solve", log, "-q", "--truth", truth_path)
     assert status == 0, out
+
+
+def test_check_truth_decides_floats_and_fractions_exactly() -> None:
+    from fractions import Fraction
+
+    from cuikslam.results.solution import check_truth
+
+    lo, hi = 1.0, 2.0
+    h = Hypothesis(
+        assignment=[],
+        pose_ids=[7, 3],
+        poses=np.array([[[lo, hi], [lo, hi], [lo, hi]], [[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]]]),
+        landmark_ids=[],
+        landmark_classes=[],
+        landmarks=np.zeros((0, 2, 2)),
+    )
+    tiny = Fraction(1, 10**30)
+    inside = [(Fraction(lo), np.float64(hi), Fraction(3, 2)), (0.0, 0.0, 0.0)]
+    assert check_truth(h, [7, 3], inside).ok
+    outside = [(Fraction(lo) - tiny, Fraction(hi) + tiny, Fraction(hi) + tiny), (0.0, 0.0, 0.0)]
+    report = check_truth(h, [7, 3], outside)
+    assert len(report.misses) == 3 and report.checked == 6
+    assert check_truth(h, [7, 3], [(1.5, 1.5, 1.5 + 2 * math.pi), (0.0, 0.0, 0.0)]).ok
