@@ -26,6 +26,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Collection
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
@@ -303,11 +304,14 @@ def count_outside(
     return log_misses(log, truth)
 
 
-def write_bounds_file(calibration: Calibration, path: str | os.PathLike[str]) -> None:
-    """Write the bounds file (see the module docstring), atomically."""
+def write_bounds_file(
+    calibration: Calibration, path: str | os.PathLike[str], dataset: str = "mrclam"
+) -> None:
+    """Write the bounds file (see the module docstring), atomically. ``calibration.bounds``
+    may be any dataclass of named bounds (the importer of ``dataset`` reads them)."""
     doc = {
         "cuikslam_bounds": FORMAT_VERSION,
-        "dataset": "mrclam",
+        "dataset": dataset,
         "bounds": asdict(calibration.bounds),
         "calibrated_on": calibration.calibrated_on,
         "errors": calibration.errors,
@@ -315,8 +319,13 @@ def write_bounds_file(calibration: Calibration, path: str | os.PathLike[str]) ->
     atomic_write_text(path, json.dumps(doc, indent=1, allow_nan=False) + "\n")
 
 
-def read_bounds_file(path: str | os.PathLike[str], dataset: str = "mrclam") -> dict[str, float]:
+def read_bounds_file(
+    path: str | os.PathLike[str], dataset: str = "mrclam", names: Collection[str] | None = None
+) -> dict[str, float]:
     """The bounds of a bounds file, checked (names and values) for ``dataset``.
+
+    ``names`` are the bounds ``dataset``'s importer knows (default: the fields of
+    :class:`~cuikslam.datasets.mrclam.MrclamBounds` for ``"mrclam"``).
 
     Raises
     ------
@@ -346,7 +355,7 @@ def read_bounds_file(path: str | os.PathLike[str], dataset: str = "mrclam") -> d
     bounds = doc.get("bounds")
     if not isinstance(bounds, dict):
         raise LogFormatError(path, None, '"bounds" must be an object {"range": ..., ...}')
-    known = set(MrclamBounds.__dataclass_fields__)
+    known = set(MrclamBounds.__dataclass_fields__ if names is None else names)
     for name, value in bounds.items():
         if name not in known:
             raise LogFormatError(
