@@ -49,9 +49,10 @@ DENSE = {
 
 def _run_world(
     n_poses: int, n_landmarks: int, classes: tuple[str, ...], seed: int, world: dict,
-    budget: float, queue: multiprocessing.Queue,
+    budget: float, decide: float, queue: multiprocessing.Queue,
 ) -> None:  # fmt: skip
     from cuikslam.hypotheses import solve_unknown
+    from cuikslam.hypotheses.witness import certify
     from cuikslam.simulate import simulate_random_world
 
     log, truth = simulate_random_world(
@@ -63,6 +64,10 @@ def _run_world(
     start = time.perf_counter()
     solution = solve_unknown(log, consistency="hull", deadline=start + budget)
     elapsed = time.perf_counter() - start
+    decide_start = time.perf_counter()
+    if decide > 0:
+        certify(log, solution, deadline=decide_start + decide)
+    decide_s = time.perf_counter() - decide_start
     stats = solution.statistics
     first: dict[str, int] = {}
     true_partition = [first.setdefault(a, len(first)) for a in truth.assignment]
@@ -86,6 +91,10 @@ def _run_world(
             "candidates_per_s": stats["candidates"] / elapsed if elapsed else float("nan"),
             "created": stats["created"],
             "survivors": stats["survivors"],
+            "reported": len(solution.hypotheses),
+            "proven": stats.get("proven_hypotheses", 0),
+            "undecided": stats.get("undecided_hypotheses", len(solution.hypotheses)),
+            "decide_seconds": decide_s,
             "peak_frontier": stats["peak_frontier"],
             "complete": solution.complete,
             "true_hypothesis_kept": found,
@@ -130,6 +139,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seeds", type=int, default=1, help="worlds per size")
     parser.add_argument("--dense", action="store_true", help="the dense worlds (30/60/100 poses)")
     parser.add_argument("--budget", type=float, default=30.0, help="seconds per search")
+    parser.add_argument(
+        "--decide", type=float, default=30.0,
+        help="seconds the witness search may spend deciding the reported survivors (0: skip)",
+    )  # fmt: skip
     parser.add_argument("--no-paper", action="store_true")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
@@ -141,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
               f"(best of {PAPER_REPEATS}; median {paper['paper_seconds_median']:.3f} s; "
               f"{paper['survivors']} survivors)")  # fmt: skip
     header = ("poses", "seed", "obs", "nodes", "seconds", "cand./s", "frontier", "surv.",
-              "complete", "truth", "RSS MB")  # fmt: skip
+              "complete", "truth", "proven", "undec.", "decide s", "RSS MB")  # fmt: skip
     print(" ".join(f"{h:>8}" for h in header))
     if args.dense:
         worlds = [(n, 16, ("door", "corridor"), DENSE) for n in DENSE_POSES]
@@ -152,13 +165,14 @@ def main(argv: list[str] | None = None) -> int:
             continue
         for seed in range(args.seed, args.seed + args.seeds):
             r = _in_process(
-                _run_world, n_poses, n_landmarks, classes, seed, world, args.budget
+                _run_world, n_poses, n_landmarks, classes, seed, world, args.budget, args.decide
             )  # fmt: skip
             rows.append(r)
             print(f"{r['poses']:>8} {r['seed']:>8} {r['observations']:>8} "
                   f"{r['branch_points']:>8} {r['seconds']:>8.2f} {r['candidates_per_s']:>8.0f} "
                   f"{r['peak_frontier']:>8} {r['survivors']:>8} {r['complete']!s:>8} "
-                  f"{r['true_hypothesis_kept']!s:>8} {r['peak_rss_mb']:>8.0f}")  # fmt: skip
+                  f"{r['true_hypothesis_kept']!s:>8} {r['proven']:>8} {r['undecided']:>8} "
+                  f"{r['decide_seconds']:>8.2f} {r['peak_rss_mb']:>8.0f}")  # fmt: skip
             sys.stdout.flush()
     if args.json:
         args.json.write_text(json.dumps({"paper": paper, "worlds": rows}, indent=1))

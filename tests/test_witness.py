@@ -388,3 +388,75 @@ def test_verification_accepts_points_with_room(case) -> None:
     log, assignment, params = case
     assert verify_witness(log, assignment, params)
     assert mp_consistent(log, assignment, params)
+
+
+def _dense_unknown_world(n_poses: int = 12):
+    return simulate_random_world(
+        seed=3, n_poses=n_poses, n_landmarks=8, classes=("door", "corridor"), unknown=True,
+        size=(20.0, 20.0), step_length=(2.0, 2.0), max_range=8.0, fov=math.pi,
+    )  # fmt: skip
+
+
+def test_sensor_jacobian_matches_finite_differences() -> None:
+    """Only violated pairs get Jacobian rows; they must still be the derivative."""
+    log, truth = _dense_unknown_world()
+    model = HypothesisModel(log, truth.assignment)
+    rng = np.random.default_rng(7)
+    checked = 0
+    for _ in range(20):
+        p = model.initial_params(None, None, rng=rng)
+        r, J = model.sensor_residuals(p, jacobian=True)
+        active = np.flatnonzero(r > 1e-6)
+        if active.size == 0:
+            continue
+        for k in rng.choice(np.flatnonzero(model.free), size=3, replace=False):
+            step = np.zeros_like(p)
+            step[k] = 1e-7
+            numeric = model.sensor_residuals(p + step)[0] - model.sensor_residuals(p - step)[0]
+            numeric /= 2e-7
+            # a pair whose violation changes kind within the step is not differentiable there
+            smooth = (model.sensor_residuals(p + step)[0][active] > 0) & (
+                model.sensor_residuals(p - step)[0][active] > 0
+            )
+            assert np.allclose(numeric[active][smooth], J[active, k][smooth], rtol=1e-4, atol=1e-6)
+            checked += int(smooth.sum())
+    assert checked > 20
+
+
+def test_sensor_rows_per_pose_keep_the_objective() -> None:
+    """One sensor residual per pose is the root of the sum of squares of its pairs."""
+    log, truth = _dense_unknown_world()
+    model = HypothesisModel(log, truth.assignment)
+    rng = np.random.default_rng(1)
+    for _ in range(10):
+        p = model.initial_params(None, None, rng=rng)
+        pairs, _ = model.sensor_residuals(p)
+        per_pose, _ = model._sensor_per_pose(p, jacobian=False)
+        assert len(per_pose) == model.n_poses
+        assert math.isclose(float(pairs @ pairs), float(per_pose @ per_pose), rel_tol=1e-12)
+
+
+def test_certify_names_the_undecided_hypotheses() -> None:
+    log, _ = simulate_paper(seed=0, unknown=True)
+    solution = solve(log, certify_limit=0, time_budget=None)
+    assert len(solution.hypotheses) == 2
+    stats = certify(log, solution, max_evaluations=1)
+    assert stats.out_of_work
+    assert solution.statistics["proven_hypotheses"] == 0
+    assert solution.statistics["undecided_hypotheses"] == 2
+    assert all(h.status == NOT_REFUTED for h in solution.hypotheses)
+    assert any(
+        "2 of 2 hypotheses undecided" in m and m.endswith(": 1-2") for m in solution.messages
+    )
+
+
+@pytest.mark.slow
+def test_every_survivor_of_the_seed_experiment_is_proven() -> None:
+    """The seed's experiment without ids: both survivors get a verified witness, among them
+    the five-landmark one whose solution set is far from its box centres."""
+    log, _ = simulate_paper(seed=0, unknown=True)
+    solution = solve(log, time_budget=None)
+    assert solution.complete
+    assert [h.status for h in solution.hypotheses] == [PROVEN, PROVEN]
+    assert sorted(h.n_landmarks for h in solution.hypotheses) == [4, 5]
+    assert solution.statistics["undecided_hypotheses"] == 0

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cuikslam import __version__
-from cuikslam.budget import COMMAND_TARGET, MIN_COMMAND_BUDGET
+from cuikslam.budget import COMMAND_TARGET, DEFAULT_TIME_BUDGET, MIN_COMMAND_BUDGET
 from cuikslam.cli._common import (
     CommandError,
     check_figure_path,
@@ -64,7 +64,16 @@ def _cmd_paper(args: argparse.Namespace) -> int:
         check_figure_path(args.figure)
     from cuikslam.cli.paper import run_paper
 
-    return run_paper(seed=args.seed, figure=args.figure, json_path=args.json, console=_console())
+    budget = args.time_budget
+    if budget == "auto":
+        budget = DEFAULT_TIME_BUDGET
+    return run_paper(
+        seed=args.seed,
+        figure=args.figure,
+        json_path=args.json,
+        console=_console(),
+        time_budget=budget,
+    )
 
 
 def _cmd_solve(args: argparse.Namespace) -> int:
@@ -333,6 +342,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--figure", default="cuikslam-paper.png", help="figure to write (default %(default)s)"
     )
     p.add_argument("--json", help="also write the result JSON here")
+    p.add_argument(
+        "--time-budget",
+        type=_time_budget,
+        default="auto",
+        metavar="SECONDS",
+        help=f"seconds each solve may take ('auto': {DEFAULT_TIME_BUDGET:g} s; 'none': no "
+        "limit); survivors the witness search has not proven by then stay undecided "
+        "(about 30 s decides every one)",
+    )
     p.set_defaults(func=_cmd_paper)
 
     p = sub.add_parser("solve", help="solve a JSON Lines log", description="Solve a log file.")
