@@ -132,6 +132,10 @@ def test_robots_kept_as_a_class_and_unknown_ids(tmp_path: Path) -> None:
     for obs, lid in zip(log.observations, truth.assignment, strict=True):
         if obs.landmark_class == "robot":
             assert obs.landmark == lid and np.allclose(truth.landmark_xy(lid), (2.0, -1.0))
+    # A robot sighting is named by its row in the file: the same name in any window.
+    window, _, _ = read_mrclam(tmp_path / "d", 1, robots="class", start=8.0, duration=5.0)
+    named = {o.landmark for o in window.observations if o.landmark_class == "robot"}
+    assert named and named <= {o.landmark for o in robots}
 
 
 def test_a_vicon_gap_leaves_poses_without_truth(tmp_path: Path) -> None:

@@ -24,10 +24,11 @@ Modelling choices:
   from the robot centre, class ``"landmark"``, id ``L<subject>`` (e.g. ``L6``) unless
   ``unknown``. Barcodes that are in no table are dropped and counted. Sightings of other
   robots are dropped (``robots="drop"``, the default) or kept (``robots="class"``) as
-  class ``"robot"``, each sighting its own landmark ``R<subject>@<index>`` (a robot
-  moves, so two sightings are never one landmark); those ids are kept even with
-  ``unknown``. A second detection of the same subject in one image is dropped and
-  counted (a scan sees distinct landmarks).
+  class ``"robot"``, each sighting its own landmark ``R<subject>@<row>`` (``row``: the
+  sighting's data row in ``RobotN_Measurement.dat``, from 0; a robot moves, so two
+  sightings are never one landmark); those ids are kept even with ``unknown``. A second
+  detection of the same subject in one image is dropped and counted (a scan sees
+  distinct landmarks).
 * **Prior.** The first pose gets a box of ``± prior_xy``, ``± prior_theta`` around its
   Vicon pose (the window must start where Vicon has one).
 * **Truth.** Vicon interpolated at each pose's time (headings unwrapped); a pose
@@ -227,7 +228,9 @@ def read_mrclam(
         )
     ]
     pose_of_time = {float(t): i for i, t in enumerate(times)}
-    obs_by_pose = _observations(tables, meas[inside], pose_of_time, bounds, robots, unknown, report)
+    obs_by_pose = _observations(
+        tables, np.flatnonzero(inside), pose_of_time, bounds, robots, unknown, report
+    )
     assignment: list[str] = []
     landmark_truth: dict[str, tuple[float, float, str]] = {
         f"L{s}": (*xy, "landmark") for s, xy in tables.landmarks.items()
@@ -289,7 +292,7 @@ def _window(
 
 def _observations(
     tables: MrclamTables,
-    meas: np.ndarray,
+    rows: np.ndarray,
     pose_of_time: dict[float, int],
     bounds: MrclamBounds,
     robots: str,
@@ -300,7 +303,8 @@ def _observations(
     that robot's position, the landmark truth)."""
     out: dict[int, list[tuple[Observation, str, tuple[float, float] | None]]] = {}
     seen: set[tuple[int, int]] = set()
-    for index, (t, code, rng, bearing) in enumerate(meas):
+    for index in rows.tolist():
+        t, code, rng, bearing = tables.measurements[index]
         subject = tables.subject_of_barcode.get(int(code))
         if subject is None or (subject not in tables.landmarks and subject not in ROBOT_SUBJECTS):
             report.drop("barcodes in no table")
