@@ -62,6 +62,7 @@ class KinematicGraph:
     _lo: list[float] = field(default_factory=list)
     _hi: list[float] = field(default_factory=list)
     _factors: list[tuple[int, ...]] = field(default_factory=list)
+    _sensor_var: dict[tuple[int, tuple[Bounds, ...]], int] = field(default_factory=dict)
     factor_lines: list[int] = field(default_factory=list)
     """Log line of each factor (0 when built by hand), for messages."""
 
@@ -157,6 +158,7 @@ class KinematicGraph:
         With ``offset``, the sensor's pose ``(dx, dy, dtheta)`` in the frame of the robot
         pose, the sensor's pose S becomes three variables: a relative pose from the robot
         pose to S (``RELATIVE`` and ``ROTATION`` factors), and the ``OBSERVATION`` from S.
+        Observations from one pose with the same offset are one scan and share S.
         Returns the index of the ``OBSERVATION`` factor.
         """
         a = self.add_pose(pose)
@@ -168,12 +170,17 @@ class KinematicGraph:
             self._factors.append((OBSERVATION, a, a + 1, a + 2, b, b + 1, -1, m, m + 1))
             self.factor_lines.append(line)
             return len(self._factors) - 1
-        o = self._new_vars([*offset, *[(-math.inf, math.inf)] * 3])
-        s = o + 3
-        self._factors.append((RELATIVE, a, a + 1, a + 2, s, s + 1, -1, o, o + 1))
-        self._factors.append((ROTATION, a, a + 1, a + 2, s, s + 1, s + 2, o + 2, -1))
+        key = (pose, tuple((float(lo), float(hi)) for lo, hi in offset))
+        if key not in self._sensor_var:  # one scan, one sensor pose
+            o = self._new_vars([*key[1], *[(-math.inf, math.inf)] * 3])
+            s = o + 3
+            self._sensor_var[key] = s
+            self._factors.append((RELATIVE, a, a + 1, a + 2, s, s + 1, -1, o, o + 1))
+            self._factors.append((ROTATION, a, a + 1, a + 2, s, s + 1, s + 2, o + 2, -1))
+            self.factor_lines.extend((line, line))
+        s = self._sensor_var[key]
         self._factors.append((OBSERVATION, s, s + 1, s + 2, b, b + 1, -1, m, m + 1))
-        self.factor_lines.extend((line, line, line))
+        self.factor_lines.append(line)
         return len(self._factors) - 1
 
     @classmethod
