@@ -268,3 +268,26 @@ def test_lagged_hulls_are_the_commands_in_force_within_the_lag(rows, lag: float)
         assert force  # the command itself is always in force
         v, w = odometry[force, 1], odometry[force, 2]
         assert hulls[i].tolist() == [v.min(), v.max(), w.min(), w.max()]
+
+
+def test_tables_read_fast_and_slow_agree(tmp_path: Path) -> None:
+    from cuikslam.datasets.mrclam_files import read_table_lines
+
+    path = tmp_path / "t.dat"
+    path.write_text("# a\n# b\n1.0 2 3\n\n2.5 -1 4e-3  # remark\n")
+    table, lines = read_table_lines(path, 3)
+    assert table.tolist() == [[1.0, 2.0, 3.0], [2.5, -1.0, 0.004]] and lines == [3, 5]
+    path.write_text("# a\n1.0 2 3\n0.5 nan 3\n")
+    with pytest.raises(LogFormatError, match=r"t\.dat:3: a number is not finite"):
+        read_table_lines(path, 3)
+    path.write_text("# only a header\n")
+    with pytest.raises(LogFormatError, match="holds no data lines"):
+        read_table_lines(path, 3)
+
+
+def test_other_robots_vicon_is_read_only_when_kept(tmp_path: Path) -> None:
+    folder = write_dataset(tmp_path / "d", duration=3.0)
+    (folder / "Robot2_Groundtruth.dat").write_text("garbage\n")
+    read_mrclam(folder, 1)  # robots dropped: robot 2's file is never read
+    with pytest.raises(LogFormatError, match=r"Robot2_Groundtruth\.dat:1"):
+        read_mrclam(folder, 1, robots="class")

@@ -323,7 +323,7 @@ def _observations(
         xy = None
         if is_robot:
             true_id = f"R{subject}@{index}"
-            other = tables.groundtruth.get(subject)
+            other = tables.vicon(subject)
             if other is None:
                 report.drop("sightings of robots without a Vicon file")
                 continue

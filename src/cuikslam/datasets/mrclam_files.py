@@ -15,9 +15,11 @@ file and line.
 
 from __future__ import annotations
 
+import io
 import itertools
 import math
 import os
+import warnings
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,7 +45,7 @@ ROBOT_SUBJECTS = range(1, 6)
 
 
 def read_table(path: Path, columns: int, *, times: bool = True) -> np.ndarray:
-    """The numbers of a MRCLAM text table, one row per data line (``#`` lines skipped).
+    """The numbers of a MRCLAM text table, one row per data line (``#`` starts a comment).
 
     See :func:`read_table_lines`, which also gives each row's line number.
     """
@@ -54,6 +56,9 @@ def read_table_lines(
     path: Path, columns: int, *, times: bool = True
 ) -> tuple[np.ndarray, list[int]]:
     """The numbers of a MRCLAM text table and the line number of each row.
+
+    NumPy parses the table; when it fails a check, a line-by-line pass finds the first
+    problem and names its line.
 
     Parameters
     ----------
@@ -82,6 +87,9 @@ def read_table_lines(
         raise LogFormatError(
             path, None, f"not a text table (bad byte at offset {err.start})"
         ) from None
+    fast = _fast_table(text, columns, times)
+    if fast is not None:
+        return fast
     rows: list[list[float]] = []
     lines: list[int] = []
     for number, line in enumerate(text.splitlines(), start=1):
@@ -112,6 +120,30 @@ def read_table_lines(
     return table, lines
 
 
+def _fast_table(text: str, columns: int, times: bool) -> tuple[np.ndarray, list[int]] | None:
+    """The table parsed by NumPy when it passes every check, else None (the line-by-line
+    parser then finds the first problem and names its line)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")  # NumPy warns on a table without data
+            table = np.loadtxt(io.StringIO(text), comments="#", ndmin=2, dtype=float)
+    except (ValueError, UserWarning):
+        return None
+    if table.shape[0] == 0 or table.shape[1] != columns or not np.isfinite(table).all():
+        return None
+    if times and (np.diff(table[:, 0]) < 0).any():
+        return None
+    lines = [
+        number
+        for number, line in enumerate(text.splitlines(), start=1)
+        if line.strip() and not line.lstrip().startswith("#")
+    ]
+    if len(lines) != table.shape[0]:
+        return None
+    table.flags.writeable = False
+    return table, lines
+
+
 @dataclass(frozen=True)
 class MrclamTables:
     """The tables of one robot of a MRCLAM dataset, checked."""
@@ -122,11 +154,19 @@ class MrclamTables:
     """(n, 3) time, commanded forward velocity, commanded angular velocity."""
     measurements: np.ndarray
     """(n, 4) time, barcode, range, bearing."""
-    groundtruth: dict[int, np.ndarray]
-    """Robot subject → (n, 4) time, x, y, theta of every robot whose file is present."""
+    groundtruth: dict[int, np.ndarray | None]
+    """Robot subject → (n, 4) time, x, y, theta: this robot's, and the others' once
+    :meth:`vicon` has read them (None: no file)."""
     landmarks: dict[int, tuple[float, float]]
     """Landmark subject → true (x, y)."""
     subject_of_barcode: dict[int, int]
+
+    def vicon(self, subject: int) -> np.ndarray | None:
+        """Robot ``subject``'s Vicon table, read on first use; None when it has no file."""
+        if subject not in self.groundtruth:
+            path = self.folder / f"Robot{subject}_Groundtruth.dat"
+            self.groundtruth[subject] = read_table(path, 4) if path.is_file() else None
+        return self.groundtruth[subject]
 
 
 def _integer(value: float, path: Path, line: int, what: str) -> int:
@@ -165,11 +205,9 @@ def read_mrclam_tables(folder: str | os.PathLike[str], robot: int) -> MrclamTabl
     }
     if robots := sorted(set(landmarks) & set(ROBOT_SUBJECTS)):
         raise LogFormatError(landmarks_path, None, f"subjects {robots} are robots, not landmarks")
-    groundtruth = {}
-    for other in ROBOT_SUBJECTS:
-        path = root / f"Robot{other}_Groundtruth.dat"
-        if other == robot or path.is_file():
-            groundtruth[other] = read_table(path, 4)
+    groundtruth: dict[int, np.ndarray | None] = {
+        robot: read_table(root / f"Robot{robot}_Groundtruth.dat", 4)
+    }
     return MrclamTables(
         folder=root,
         robot=robot,
