@@ -15,7 +15,13 @@ from _exact import MP, TWO_PI, mpf
 from cuikslam.graph import KinematicGraph
 from cuikslam.graph.encoding import OBSERVATION, ODOMETRY
 from cuikslam.narrowing import propagate
-from cuikslam.narrowing.consistency import LEVELS
+from cuikslam.narrowing.consistency import (
+    LEVELS,
+    WINDOW_OVERLAP,
+    WINDOW_POSES,
+    _windows,
+    resolve_level,
+)
 from cuikslam.narrowing.relaxation import relax, tighten
 from cuikslam.results.solution import check_truth
 from cuikslam.simulate import simulate_paper, simulate_random_world
@@ -229,3 +235,41 @@ def test_lp_reports_progress_window_by_window() -> None:
     done = [d / t for d, t in calls]
     assert done == sorted(done)
     assert calls[-1][0] == calls[-1][1]
+
+
+def test_auto_is_lp_at_any_length() -> None:
+    assert resolve_level("auto", 9) == "lp"
+    assert resolve_level("auto", 100_000) == "lp"
+    assert resolve_level("hull", 100_000) == "hull"
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_windows_hold_exactly_the_factors_among_their_poses(seed: int) -> None:
+    """Every window holds the odometry factors between two of its poses and the
+    observations from one of them (nothing more), windows overlap, and every such factor
+    of the log lies in some window."""
+    log, _ = simulate_random_world(seed=seed, n_poses=37, n_landmarks=4, size=(20.0, 15.0))
+    factors = KinematicGraph.from_log(log).factor_table()
+    windows = _windows(factors)
+    pose_of = {}
+    for f in factors[factors[:, 0] == ODOMETRY]:
+        pose_of[f[1]] = pose_of[f[4]] = None
+    for f in factors[factors[:, 0] == OBSERVATION]:
+        pose_of[f[1]] = None
+    poses = sorted(pose_of)
+    covered = set()
+    step = WINDOW_POSES - WINDOW_OVERLAP
+    for w, window in enumerate(windows):
+        group = set(poses[w * step : w * step + WINDOW_POSES])
+        expected = [
+            i
+            for i, f in enumerate(factors)
+            if (f[0] == ODOMETRY and f[1] in group and f[4] in group)
+            or (f[0] == OBSERVATION and f[1] in group)
+        ]
+        assert window.indices.tolist() == expected
+        assert np.array_equal(window.rows, factors[expected])
+        covered.update(expected)
+    kinds = np.isin(factors[:, 0], (ODOMETRY, OBSERVATION))
+    assert covered == set(np.flatnonzero(kinds).tolist())
+    assert len(windows) == len(range(0, len(poses) - WINDOW_OVERLAP, step))

@@ -191,3 +191,21 @@ def test_lp_multipliers_spoiled_any_way_still_bound(
     elif mode == "zero":
         y = np.where(rng.random(m) < 0.5, 0.0, y)
     _assert_valid(safe_lower_bound(csc, row_lo, row_hi, objective, y, box), objective, x0)
+
+
+def test_a_wrong_sign_round_off_on_a_one_sided_row_costs_nothing() -> None:
+    """min x over {x >= 1 (a row with no upper side), x in [0, 10]}: the exact multiplier is
+    1; a simplex may return it with a 1e-13 multiplier of the wrong sign on another row with
+    no lower side, which alone would make the bound -inf. It is dropped: the bound is the
+    exact multiplier's (1 rounded outward by a few ulps)."""
+    dense = np.array([[1.0], [1.0]])
+    row_lo = np.array([1.0, -math.inf])
+    row_hi = np.array([math.inf, 20.0])
+    box = np.array([[0.0, 10.0]])
+    objective = np.array([1.0])
+    exact = safe_lower_bound(sparse.csc_matrix(dense), row_lo, row_hi, objective,
+                             np.array([1.0, 0.0]), box)  # fmt: skip
+    noisy = safe_lower_bound(sparse.csc_matrix(dense), row_lo, row_hi, objective,
+                             np.array([1.0, 1e-13]), box)  # fmt: skip
+    assert 1.0 - 1e-14 < exact <= 1.0
+    assert noisy == exact

@@ -24,9 +24,11 @@ __all__ = [
     "COMMAND_TARGET",
     "DEFAULT_TIME_BUDGET",
     "MIN_COMMAND_BUDGET",
+    "SECONDS_PER_POSE",
     "STRENGTHEN_SHARE",
     "OutOfTime",
     "blas_single_thread",
+    "command_budget",
     "deadline_after",
     "expired",
     "portion",
@@ -43,7 +45,12 @@ COMMAND_TARGET = 4.0
 """Seconds ``cuikslam solve`` aims at end to end with its default ``--time-budget auto``:
 the solve gets what start-up (imports, loading the compiled kernels) left of it..."""
 MIN_COMMAND_BUDGET = 1.0
-"""...but at least this much."""
+"""...but at least this much..."""
+SECONDS_PER_POSE = 0.05
+"""...and at least this much per pose of the log: the default level's LP sweeps cost a
+roughly constant time per pose (``benchmarks/bench_long_logs.py``), so a long log gets the
+time it needs to reach the full level instead of being cut to ``lp (budget)`` after its
+first few hundred poses."""
 STRENGTHEN_SHARE = 0.7
 """Fraction of the time left after hull narrowing that the stronger level may use; the
 witness search gets the rest (and whatever the stronger level did not need)."""
@@ -51,6 +58,25 @@ witness search gets the rest (and whatever the stronger level did not need)."""
 
 class OutOfTime(Exception):
     """Raised inside a stage's inner loop when its deadline has passed (caught by the stage)."""
+
+
+def command_budget(spent: float, n_poses: int) -> float:
+    """Seconds a solve gets under ``cuikslam solve --time-budget auto``.
+
+    Parameters
+    ----------
+    spent : float
+        Seconds the command has already spent (start-up, reading the log).
+    n_poses : int
+        Poses in the log.
+
+    Returns
+    -------
+    float
+        What start-up left of ``COMMAND_TARGET``, at least ``MIN_COMMAND_BUDGET`` and at
+        least ``SECONDS_PER_POSE`` per pose.
+    """
+    return max(MIN_COMMAND_BUDGET, COMMAND_TARGET - spent, SECONDS_PER_POSE * n_poses)
 
 
 def deadline_after(seconds: float | None) -> float | None:

@@ -25,7 +25,6 @@ from cuikslam.hypotheses.witness import certify
 from cuikslam.log.records import Log
 from cuikslam.narrowing._propagate import INCONSISTENT
 from cuikslam.narrowing.consistency import (
-    AUTO_LP_POSES,
     DEFAULT_LEVEL,
     Arrays,
     StrengthenReport,
@@ -141,15 +140,7 @@ def solve(
     start = time.perf_counter()
     deadline = deadline_after(time_budget)
     n_poses = len(log.pose_ids)
-    chosen = resolve_level(consistency, n_poses)
-    notes = []
-    if consistency == "auto" and chosen == "hull":
-        notes.append(
-            f"consistency 'hull' chosen for {n_poses} poses (the 'lp' level is automatic up "
-            f"to {AUTO_LP_POSES}); ask for --consistency lp for boxes up to ~10x narrower, "
-            "at a cost of seconds to minutes"
-        )
-    consistency = chosen
+    consistency = resolve_level(consistency, n_poses)
     if log.has_unknown_correspondence:
         solution = solve_unknown(
             log,
@@ -163,7 +154,6 @@ def solve(
         )
     else:
         solution = _solve_known(log, consistency, rtol, progress, deadline)
-    solution.messages[:0] = notes
     if n_poses > CERTIFY_MAX_POSES:
         certify_limit = 0  # the witness search is a dense least-squares problem
     certify_start = time.perf_counter()

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 
 from rich.console import Console
 
-from cuikslam.budget import COMMAND_TARGET, MIN_COMMAND_BUDGET
+from cuikslam.budget import command_budget
 from cuikslam.cli._common import check_output_path, progress_bar, write_output
 from cuikslam.log.reader import read_log_file
 from cuikslam.log.records import Log
@@ -196,7 +196,7 @@ def run_solve(
 
     if time_budget == "auto":  # what start-up left of the command's target, within limits
         spent = 0.0 if started is None else time.perf_counter() - started
-        time_budget = max(MIN_COMMAND_BUDGET, COMMAND_TARGET - spent)
+        time_budget = command_budget(spent, len(log.pose_ids))
     with progress_bar("solving", enabled=not quiet) as progress:
         solution = solve(
             log,

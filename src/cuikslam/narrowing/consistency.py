@@ -2,10 +2,13 @@
 
 - ``hull``: the fixpoint of the narrowing operators (local, hull consistency). Fastest;
   boxes forget that consecutive poses are correlated, so they grow along the chain.
-- ``lp``: ``hull`` then rounds of the polytope-hull operator (:mod:`.relaxation`) over
-  windows of consecutive poses, each followed by propagation, until a round shrinks the
-  boxes by less than 0.5 %. Correlation-aware, so it removes most of the wrapping effect:
-  within 1.32x of the exact hull on the seed's experiment, in about half a second.
+- ``lp``: ``hull`` then sweeps of the polytope-hull operator (:mod:`.relaxation`) over
+  overlapping windows of consecutive poses, forward then backward along the chain, each
+  followed by propagation, until a sweep shrinks the boxes by less than 0.5 %. A bound
+  whose LP stopped moving it is not solved again until its window's boxes have shrunk.
+  Correlation-aware, so it removes most of the wrapping effect: within 1.32x of the exact
+  hull on the seed's experiment. Its cost grows linearly with the log (every window has a
+  bounded size), so ``auto`` is ``lp`` at any length.
 - ``lp-split``: ``lp``, then the widest headings are bisected one after the other; each
   half is narrowed at level ``lp`` and the hull of the halves is kept. The linearisations
   are tighter on half the heading interval. About 3.5 times the cost of ``lp``, for
@@ -42,8 +45,14 @@ from cuikslam.graph.encoding import (
     XA,
     XB,
 )
-from cuikslam.narrowing._propagate import CONSISTENT, INCONSISTENT, propagate_arrays
-from cuikslam.narrowing.relaxation import LpStatistics, WarmStarts, tighten
+from cuikslam.narrowing._factors import fresh_memory
+from cuikslam.narrowing._propagate import (
+    CONSISTENT,
+    INCONSISTENT,
+    propagate_arrays,
+    propagate_buffered,
+)
+from cuikslam.narrowing.relaxation import LpStatistics, WarmStarts, tighten_in_place
 
 __all__ = [
     "BUDGET_SUFFIX",
@@ -57,16 +66,25 @@ __all__ = [
 
 LEVELS = ("hull", "lp", "lp-split")
 DEFAULT_LEVEL = "auto"
-"""``lp`` up to ``AUTO_LP_POSES`` poses, ``hull`` beyond (see :func:`resolve_level`)."""
-AUTO_LP_POSES = 50
+"""``lp``, whatever the length of the log (see :func:`resolve_level`)."""
 WINDOW_POSES = 10
-"""Poses per window of the polytope-hull operator (windows overlap by half)."""
+"""Poses per window of the polytope-hull operator."""
+WINDOW_OVERLAP = 5
+"""Poses shared by consecutive windows."""
+LOCAL_SPAN = 4
+"""Before a window's LPs, its factors are propagated, with at most this many operator
+applications per factor of the window (the LPs' relaxation is tighter on narrower boxes;
+the cap keeps the cost of a window independent of the log's length)."""
 MAX_LP_ROUNDS = 12
 MIN_GAIN = 0.005
 """Stop after a full round that shrinks the total width by less than this fraction."""
 FULL_ROUND_EVERY = 3
-ACTIVE_GAIN = 0.02
-"""Between full rounds, only variables that shrank by this fraction last round are re-solved."""
+UNSTALE_SHRINK = 0.02
+"""A window's stale bounds are solved again once the widths of its variables have shrunk
+by about this fraction since its last LPs (in the mean of their logarithms)."""
+STALE_GAIN = 0.01
+"""A bound whose LP moved it by less than this fraction of its width is left alone until
+the next full sweep."""
 SPLIT_HEADINGS = 2
 """Headings bisected by the ``lp-split`` level (the widest first)."""
 BUDGET_SUFFIX = " (budget)"
@@ -99,41 +117,77 @@ class Arrays:
 
 
 def resolve_level(level: str, n_poses: int) -> str:
-    """The level to run: ``auto`` becomes ``lp`` up to ``AUTO_LP_POSES`` poses, else ``hull``.
+    """The level to run: ``auto`` becomes ``lp`` (whatever ``n_poses``; kept as a parameter
+    so that callers need not change if the choice ever depends on the log again).
 
-    The polytope-hull rounds take half a second on the seed's 9 poses, 3 s at 40-50
-    poses and 19 s at 100 on random worlds dense with observations; ask for them
-    explicitly on long logs.
+    The ``lp`` sweeps cost about the same per pose on short and long logs (see
+    ``benchmarks/bench_long_logs.py``); the time budget of a solve, not the level, is what
+    bounds a long log's run time.
     """
     if level == "auto":
-        return "lp" if n_poses <= AUTO_LP_POSES else "hull"
+        return "lp"
     if level not in LEVELS:
         raise ValueError(f"unknown consistency level {level!r}; choose auto or one of {LEVELS}")
     return level
 
 
-def _windows(factors: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
-    """Overlapping windows of consecutive poses: (factor rows, target variables) each."""
-    rows = factors[np.isin(factors[:, KIND], (ODOMETRY, OBSERVATION, RELATIVE, ROTATION))]
+@dataclass
+class _Window:
+    """A window of consecutive poses: its factors (indices and rows) and the variables it
+    narrows (positions and headings of its poses, positions of the landmarks they see)."""
+
+    indices: np.ndarray
+    rows: np.ndarray
+    targets: np.ndarray
+    headings: np.ndarray
+
+
+def _windows(factors: np.ndarray) -> list[_Window]:
+    """Overlapping windows of consecutive poses, in the order of the chain.
+
+    A window holds every odometry factor between two of its poses and every observation
+    from one of them; built in time linear in the number of factors.
+    """
+    kept = np.flatnonzero(np.isin(factors[:, KIND], (ODOMETRY, OBSERVATION, RELATIVE, ROTATION)))
+    rows = factors[kept]
     if len(rows) == 0:
         return []
     odo = np.isin(rows[:, KIND], (ODOMETRY, RELATIVE, ROTATION))  # pose to pose
     turns = np.isin(rows[:, KIND], (ODOMETRY, ROTATION))  # with a heading tb
     poses = np.unique(np.concatenate([rows[:, XA], rows[odo, XB]]))
+    first = np.searchsorted(poses, rows[:, XA])
+    last = np.where(odo, np.searchsorted(poses, np.where(odo, rows[:, XB], rows[:, XA])), first)
+    first, last = np.minimum(first, last), np.maximum(first, last)
     if len(poses) <= WINDOW_POSES:
-        groups = [poses]
+        starts = [0]
     else:
-        step = WINDOW_POSES // 2
-        groups = [poses[i : i + WINDOW_POSES] for i in range(0, len(poses) - step, step)]
+        starts = list(range(0, len(poses) - WINDOW_OVERLAP, WINDOW_POSES - WINDOW_OVERLAP))
+    order = np.argsort(first, kind="stable")
+    sorted_first = first[order]
     windows = []
-    for group in groups:
-        inside = np.isin(rows[:, XA], group) & (~odo | np.isin(rows[:, XB], group))
+    for start in starts:
+        end = start + WINDOW_POSES
+        span = np.searchsorted(sorted_first, [start, end])
+        candidates = order[span[0] : span[1]]
+        inside = np.sort(candidates[last[candidates] < end])
         selected, selected_turns = rows[inside], turns[inside]
         b = selected[:, XB]
         targets = [selected[:, XA], selected[:, XA] + 1, selected[:, TA], b, b + 1]
         targets.append(selected[selected_turns, TB])
-        windows.append((selected, np.unique(np.concatenate(targets))))
+        headings = np.unique(np.concatenate([selected[:, TA], selected[selected_turns, TB]]))
+        windows.append(
+            _Window(kept[inside], selected, np.unique(np.concatenate(targets)), headings)
+        )
     return windows
+
+
+def _signature(lo: np.ndarray, hi: np.ndarray, variables: np.ndarray) -> float:
+    """Mean of the logarithms of the finite, non-zero widths: it drops by about g when
+    every variable shrinks by the fraction g."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        logs = np.log(hi[variables] - lo[variables])
+    logs = logs[np.isfinite(logs)]
+    return float(np.mean(logs)) if logs.size else 0.0
 
 
 def _total_width(lo: np.ndarray, hi: np.ndarray, variables: np.ndarray) -> float:
@@ -259,6 +313,30 @@ def _factors_of(arrays: Arrays, variable: int) -> np.ndarray:
     return np.array(found, dtype=np.int64)
 
 
+class _Propagator:
+    """Propagation over the whole graph with work arrays allocated once (a call costs what
+    it touches, not the size of the graph)."""
+
+    def __init__(self, arrays: Arrays, rtol: float, max_rounds: int) -> None:
+        n = arrays.factors.shape[0]
+        self.arrays, self.rtol, self.max_rounds = arrays, rtol, max_rounds
+        self.queue = np.empty(n + 1, dtype=np.int64)
+        self.state = np.zeros(n, dtype=np.int8)
+        self.memory = fresh_memory(n)
+        self.applied = np.empty(n, dtype=np.int64)
+
+    def __call__(
+        self, lo: np.ndarray, hi: np.ndarray, touched: np.ndarray, max_applications: int = 2**62
+    ) -> tuple[int, int]:
+        a = self.arrays
+        status, count, _ = propagate_buffered(
+            lo, hi, a.factors, a.head, a.entry_factor, a.entry_next, touched, self.rtol,
+            self.max_rounds, max_applications, self.queue, self.state, self.memory,
+            self.applied,
+        )  # fmt: skip
+        return status, count
+
+
 def _polytope_rounds(
     arrays: Arrays,
     lo: np.ndarray,
@@ -269,68 +347,85 @@ def _polytope_rounds(
     deadline: float | None,
     report: StrengthenReport,
 ) -> tuple[int, int, bool]:
-    """Rounds of the polytope-hull operator, each followed by propagation, until they stall.
+    """Sweeps of the polytope-hull operator along the chain, forward then backward, until
+    they stall.
 
-    Returns ``(status, applications, finished)``; ``finished`` is False when the deadline
-    cut the rounds short (the boxes are then propagated to the fixpoint all the same).
+    Before a window's LPs its factors are propagated (capped, see ``LOCAL_SPAN``), so each
+    window starts from what the previous one found. A bound whose last LP moved it by less
+    than ``STALE_GAIN`` of its width is not solved again until the next full sweep (every
+    ``FULL_ROUND_EVERY``-th). After each sweep the whole graph is propagated. Returns
+    ``(status, applications, finished)``; ``finished`` is False when the deadline cut the
+    sweeps short (the boxes are then propagated to the fixpoint all the same).
     """
-    everything = np.arange(arrays.factors.shape[0], dtype=np.int64)
-    applications = 0
     windows = _windows(arrays.factors)
     if not windows:
         return CONSISTENT, 0, True
-    targets = np.unique(np.concatenate([t for _, t in windows]))
+    propagate = _Propagator(arrays, rtol, max_rounds)
+    everything = np.arange(arrays.factors.shape[0], dtype=np.int64)
+    applications = 0
+    targets = np.unique(np.concatenate([w.targets for w in windows]))
     width = _total_width(lo, hi, targets)
-    active = np.ones(len(lo), dtype=bool)
+    stale_lo = np.zeros(len(lo), dtype=bool)
+    stale_hi = np.zeros(len(lo), dtype=bool)
     warm = [WarmStarts() for _ in windows]
+    signature = np.full(len(windows), -np.inf)
+    total = MAX_LP_ROUNDS * len(windows)
     for round_index in range(MAX_LP_ROUNDS):
-        with np.errstate(invalid="ignore"):  # inf - inf for unbounded variables
-            before = hi - lo
+        full = round_index % FULL_ROUND_EVERY == 0
+        if full:
+            stale_lo[:] = False
+            stale_hi[:] = False
         skipped = report.lp.skipped
         cut = False
-        if round_index % FULL_ROUND_EVERY == 0:
-            active[:] = True
-        for w, ((rows, window_targets), bases) in enumerate(zip(windows, warm, strict=True)):
+        order = range(len(windows)) if round_index % 2 == 0 else range(len(windows) - 1, -1, -1)
+        for step, w in enumerate(order):
+            window = windows[w]
             if progress is not None:
-                progress(round_index * len(windows) + w, MAX_LP_ROUNDS * len(windows))
-            chosen = window_targets[active[window_targets]]
-            if chosen.size == 0:
+                progress(round_index * len(windows) + step, total)
+            if _signature(lo, hi, window.targets) < signature[w] - UNSTALE_SHRINK:
+                stale_lo[window.targets] = False
+                stale_hi[window.targets] = False
+            lower = window.targets[~stale_lo[window.targets]]
+            upper = window.targets[~stale_hi[window.targets]]
+            if lower.size == 0 and upper.size == 0:
                 continue
             if expired(deadline):
                 cut = True
                 break
-            new_lo, new_hi, feasible = tighten(
-                rows, lo, hi, chosen, bases, deadline=deadline, statistics=report.lp
-            )
+            status, count = propagate(lo, hi, window.indices, LOCAL_SPAN * len(window.indices))
+            applications += count
+            if status == INCONSISTENT:
+                return INCONSISTENT, applications, True
+            old_lo, old_hi = lo[window.targets], hi[window.targets]
+            feasible = tighten_in_place(
+                window.rows, lo, hi, lower, warm[w], deadline=deadline,
+                statistics=report.lp, upper_targets=upper,
+            )  # fmt: skip
             if not feasible:
                 return INCONSISTENT, applications, True
-            lo[:] = new_lo
-            hi[:] = new_hi
+            with np.errstate(invalid="ignore"):
+                slack = STALE_GAIN * (old_hi - old_lo)
+                moved_lo = (lo[window.targets] - old_lo > slack) | (
+                    np.isinf(slack) & (lo[window.targets] > old_lo)
+                )
+                moved_hi = (old_hi - hi[window.targets] > slack) | (
+                    np.isinf(slack) & (hi[window.targets] < old_hi)
+                )
+            stale_lo[lower] = ~moved_lo[np.searchsorted(window.targets, lower)]
+            stale_hi[upper] = ~moved_hi[np.searchsorted(window.targets, upper)]
+            signature[w] = _signature(lo, hi, window.targets)
         report.lp_rounds += 1
         cut = cut or report.lp.skipped > skipped
-        status, count = propagate_arrays(
-            lo,
-            hi,
-            arrays.factors,
-            arrays.head,
-            arrays.entry_factor,
-            arrays.entry_next,
-            everything,
-            rtol,
-            max_rounds,
-            2**62,
-        )
+        status, count = propagate(lo, hi, everything)
         applications += count
         if status == INCONSISTENT:
             return INCONSISTENT, applications, True
         if cut:
             return CONSISTENT, applications, False
         new_width = _total_width(lo, hi, targets)
-        if new_width > width * (1.0 - MIN_GAIN) and round_index % FULL_ROUND_EVERY == 0:
+        if new_width > width * (1.0 - MIN_GAIN) and full:
             break
         if expired(deadline) and round_index + 1 < MAX_LP_ROUNDS:
             return CONSISTENT, applications, False
         width = new_width
-        with np.errstate(invalid="ignore"):
-            active = (hi - lo) < before * (1.0 - ACTIVE_GAIN)
     return CONSISTENT, applications, True

@@ -45,7 +45,14 @@ from cuikslam.graph.encoding import (
 from cuikslam.interval._rounding import TWO_PI_HI, TWO_PI_LO
 from cuikslam.narrowing.lp_bounds import LpStatistics, WarmStarts, certified_bounds
 
-__all__ = ["LinearRelaxation", "LpStatistics", "WarmStarts", "relax", "tighten"]
+__all__ = [
+    "LinearRelaxation",
+    "LpStatistics",
+    "WarmStarts",
+    "relax",
+    "tighten",
+    "tighten_in_place",
+]
 
 
 @dataclass
@@ -342,6 +349,7 @@ def tighten(
     *,
     deadline: float | None = None,
     statistics: LpStatistics | None = None,
+    upper_targets: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Narrow the ``targets`` variables to the hull of the linear relaxation of ``factors``.
 
@@ -354,31 +362,55 @@ def tighten(
     Each LP runs within its own limits (see :mod:`.lp_bounds`); past ``deadline`` (a
     :func:`time.perf_counter` value) no further LP starts and the remaining targets keep
     their bounds. ``statistics`` (an :class:`LpStatistics`) receives the LP counts.
+    With ``upper_targets``, only the lower bounds of ``targets`` and the upper bounds of
+    ``upper_targets`` are computed.
+    """
+    lo, hi = lo.copy(), hi.copy()
+    feasible = tighten_in_place(
+        factors, lo, hi, targets, warm, deadline=deadline, statistics=statistics,
+        upper_targets=upper_targets,
+    )  # fmt: skip
+    return lo, hi, feasible
+
+
+def tighten_in_place(
+    factors: np.ndarray,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    targets: np.ndarray,
+    warm: WarmStarts | None = None,
+    *,
+    deadline: float | None = None,
+    statistics: LpStatistics | None = None,
+    upper_targets: np.ndarray | None = None,
+) -> bool:
+    """:func:`tighten` narrowing ``lo`` and ``hi`` in place; returns ``feasible``.
+
+    Its cost depends on the size of ``factors`` and the targets only, not on the length
+    of ``lo`` (a window of a long log costs the same wherever it lies).
     """
     ensure_round_to_nearest()
-    lo, hi = lo.copy(), hi.copy()
     slots = factors[:, 1:]
-    used = np.unique(slots[slots >= 0])
-    local = np.full(len(lo), -1, dtype=np.int64)
-    local[used] = np.arange(len(used))
+    used = np.unique(slots[slots >= 0])  # sorted: a variable's column is its rank here
     local_factors = factors.copy()
-    local_factors[:, 1:] = np.where(slots >= 0, local[np.maximum(slots, 0)], -1)
-    sub_lo, sub_hi = lo[used], hi[used]
-    relaxation = relax(local_factors, sub_lo, sub_hi)
+    local_factors[:, 1:] = np.where(slots >= 0, np.searchsorted(used, np.maximum(slots, 0)), -1)
+    relaxation = relax(local_factors, lo[used], hi[used])
     if relaxation.matrix.shape[0] == 0:
-        return lo, hi, True
+        return True
     box = np.stack([relaxation.col_lo, relaxation.col_hi], axis=-1)
     csc = relaxation.matrix.tocsc()
-    columns = [int(local[v]) for v in targets if local[v] >= 0]
-    chosen = [int(v) for v in targets if local[v] >= 0]
-    # minima and maxima in two threads, each with its own HiGHS instance
+    upper_targets = targets if upper_targets is None else upper_targets
+    chosen = np.intersect1d(np.asarray(targets, dtype=np.int64), used)
+    upper_chosen = np.intersect1d(np.asarray(upper_targets, dtype=np.int64), used)
+    # minima, then maxima, each with its own HiGHS instance
     warm = warm if warm is not None else WarmStarts()
     lower, upper = certified_bounds(
-        csc, relaxation.row_lo, relaxation.row_hi, box, columns, warm, deadline, statistics
-    )
-    for v, low, high in zip(chosen, lower, upper, strict=True):
-        lo[v] = max(lo[v], low)
-        hi[v] = min(hi[v], high)
-        if lo[v] > hi[v]:
-            return lo, hi, False
-    return lo, hi, True
+        csc, relaxation.row_lo, relaxation.row_hi, box,
+        np.searchsorted(used, chosen).tolist(), warm, deadline, statistics,
+        np.searchsorted(used, upper_chosen).tolist(),
+    )  # fmt: skip
+    if chosen.size:
+        lo[chosen] = np.maximum(lo[chosen], lower)
+    if upper_chosen.size:
+        hi[upper_chosen] = np.minimum(hi[upper_chosen], upper)
+    return not (np.any(lo[chosen] > hi[chosen]) or np.any(lo[upper_chosen] > hi[upper_chosen]))
