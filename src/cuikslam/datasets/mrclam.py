@@ -67,6 +67,7 @@ from cuikslam.datasets.mrclam_files import (
     read_mrclam_tables,
     velocity_steps,
 )
+from cuikslam.interval._arith import add
 from cuikslam.log.errors import LogFormatError
 from cuikslam.log.records import Log, Observation, PosePrior, Record
 from cuikslam.simulate.truth import GroundTruth
@@ -222,9 +223,9 @@ def read_mrclam(
     records: list[Record] = [
         PosePrior(
             0,
-            (x - bounds.prior_xy, x + bounds.prior_xy),
-            (y - bounds.prior_xy, y + bounds.prior_xy),
-            (th - bounds.prior_theta, th + bounds.prior_theta),
+            _around(x, bounds.prior_xy),
+            _around(y, bounds.prior_xy),
+            _around(th, bounds.prior_theta),
         )
     ]
     pose_of_time = {float(t): i for i, t in enumerate(times)}
@@ -263,6 +264,11 @@ def read_mrclam(
         assignment=assignment,
     )
     return Log(records=records, path=os.fspath(tables.folder)), truth, report
+
+
+def _around(value: float, bound: float) -> tuple[float, float]:
+    """``[value - bound, value + bound]`` rounded outward."""
+    return add(value, value, -bound, bound)
 
 
 def _window(
@@ -318,8 +324,9 @@ def _observations(
             report.drop("second detections of a subject in one image")
             continue
         seen.add((pose, subject))
-        range_box = (max(rng - bounds.range, 0.0), rng + bounds.range)
-        bearing_box = (bearing - bounds.bearing, bearing + bounds.bearing)
+        lo, hi = _around(float(rng), bounds.range)
+        range_box = (max(lo, 0.0), hi)
+        bearing_box = _around(float(bearing), bounds.bearing)
         xy = None
         if is_robot:
             true_id = f"R{subject}@{index}"
