@@ -210,3 +210,34 @@ def test_the_pose_hull_over_every_survivor_is_checked_too() -> None:
     ev = evaluate(Solution([wrong], statistics=stats, correspondence={"pose_hull": hull}), truth)
     assert ev.hull_inside == 2 and ev.guarantee_held is False
     assert evaluation_to_json(ev)["pose_hull"] == {"with_truth": 3, "inside": 2}
+
+
+def test_the_logs_named_landmarks_come_from_the_result_or_log(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    # The log names landmark A on observation 1; the only survivor calls observation 0's
+    # landmark "A" (a new landmark given that name) and observation 1's "B": the true
+    # partition, but not with the log's names.
+    log = tmp_path / "trip.jsonl"
+    log.write_text(
+        '{"type": "prior", "pose": 0, "x": [0, 0], "y": [0, 0], "theta": [0, 0]}\n'
+        '{"type": "observation", "pose": 0, "class": "post", "range": [2, 3]}\n'
+        '{"type": "observation", "pose": 0, "class": "post", "range": [2, 3], "landmark": "A"}\n'
+    )
+    truth = _truth_doc({"0": [0, 0, 0]}, ["B", "A"])
+    solution = Solution([_hypothesis(["A", "B"], ["A", "B"])], log_path=str(log))
+    result, truth_path = _write(tmp_path, solution, truth)
+    out = tmp_path / "ev.json"
+    assert main(["evaluate", result, "--truth", truth_path, "--json", str(out), "-q"]) == 1
+    assert json.loads(out.read_text())["true_rank"] is None
+    log.rename(tmp_path / "moved.jsonl")  # the result's log is gone: compared without names
+    # Then the survivor is the true partition, and its landmark "A" (truly B at x = 4.5)
+    # misses its box [2, 4]: the guarantee fails.
+    assert main(["evaluate", result, "--truth", truth_path, "--json", str(out), "-q"]) == 1
+    doc = json.loads(out.read_text())
+    assert doc["true_rank"] == 1 and "is not there" in doc["notes"][0]
+    assert doc["misses"] == ["landmark A x=4.5 not in [2.0, 4.0]"]
+    args = ["evaluate", result, "--truth", truth_path, "--log", str(tmp_path / "moved.jsonl")]
+    assert main([*args, "-q"]) == 1  # --log names it again
+    assert main([*args[:-1], str(tmp_path / "nope.jsonl")]) == 2
+    assert "nope.jsonl" in capsys.readouterr().err
