@@ -228,6 +228,22 @@ def test_search_keeps_the_truth_at_hull(world: World, naming: str) -> None:
 
 
 @pytest.mark.parametrize("naming", ["none", "mixed"])
+@ci(60)
+@given(
+    world=worlds(**SMALL),
+    share=st.sampled_from([1.0, 0.999, 0.5]),
+    margin=st.sampled_from([0.0, 0.3]),
+    extra=st.sampled_from([0, 0, 1]),
+)
+def test_class_priors_the_truth_meets_keep_it(
+    world: World, naming: str, share: float, margin: float, extra: int
+) -> None:
+    """Class priors that hold in the true world (exact count, separation up to the closest
+    true pair, region touching the landmarks) never refute the truth."""
+    check_search(world.with_class_priors(share, margin, extra), naming, "hull")
+
+
+@pytest.mark.parametrize("naming", ["none", "mixed"])
 @pytest.mark.parametrize("level", ["lp", "lp-during"])
 @ci(25)
 @given(world=worlds(**TINY))

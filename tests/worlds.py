@@ -20,7 +20,7 @@ import json
 import math
 import random
 from collections.abc import Collection, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from decimal import Decimal
 from pathlib import Path
 from typing import Any
@@ -367,6 +367,33 @@ class World:
     @property
     def n_observations(self) -> int:
         return len(self.truth.assignment)
+
+    def with_class_priors(self, share: float, margin: float, extra: int) -> World:
+        """This world with a ``class`` record per landmark class that its truth satisfies:
+        ``at_most`` the true count plus ``extra``; ``min_separation`` ``share`` (in (0, 1])
+        of the closest true pair of the class, rounded down; the region the landmarks' hull
+        grown by ``margin``, rounded outward. Computed on the reference reals."""
+        records = []
+        for cls in sorted(set(self.truth.classes.values())):
+            ids = [lid for lid, c in self.truth.classes.items() if c == cls]
+            xs = [self.truth.landmarks[lid][0] for lid in ids]
+            ys = [self.truth.landmarks[lid][1] for lid in ids]
+            record: dict[str, Any] = {
+                "type": "class",
+                "class": cls,
+                "at_most": len(ids) + extra,
+                "x": [down(min(xs) - margin), up(max(xs) + margin)],
+                "y": [down(min(ys) - margin), up(max(ys) + margin)],
+            }
+            gaps = [
+                MP.hypot(xs[i] - xs[j], ys[i] - ys[j]) for i in range(len(ids)) for j in range(i)
+            ]
+            closest = min(gaps, default=None)
+            if closest is not None and closest > 0 and down(closest * mpf(share)) > 0:
+                record["min_separation"] = down(closest * mpf(share))
+            records.append(record)
+        notes = [*self.notes, f"class priors: {records}"]
+        return replace(self, records=[*records, *self.records], notes=notes)
 
 
 def _real(v: float) -> float:

@@ -221,6 +221,12 @@ class KinematicGraph:
                     record.offset,
                 )
                 observation_index += 1
+        regions = {c: r for c, r in log.class_priors.items() if r.x is not None and r.y is not None}
+        for landmark, cls in zip(
+            list(graph.landmark_ids), list(graph.landmark_classes), strict=True
+        ):
+            if cls in regions:  # every landmark of the class lies in its region
+                graph.add_landmark_prior(landmark, regions[cls].x, regions[cls].y, cls)
         return graph
 
     # ----------------------------------------------------------------- arrays

@@ -42,6 +42,7 @@ from cuikslam.interval._periodic import periodic_meet
 from cuikslam.interval._rounding import PI_HI, TWO_PI_HI
 from cuikslam.log.errors import LogFormatError
 from cuikslam.log.records import (
+    ClassPrior,
     LandmarkPrior,
     Log,
     Observation,
@@ -98,6 +99,8 @@ class Problem:
     radius_var: dict[int, int] = field(default_factory=dict)
     arc_var: int = -1
     n_observations: int = 0
+    class_priors: dict[str, ClassPrior] = field(default_factory=dict)
+    """The user's priors on each class of landmarks (count, separation, region)."""
 
     @property
     def ranked_vars(self) -> np.ndarray:
@@ -247,9 +250,23 @@ def build_problem(log: Log) -> Problem:
     )
     if log.sensor is not None:
         _add_sensor_variables(problem, b, log)
+    problem.class_priors = log.class_priors
+    _restrict_to_regions(problem, b)
     problem.lo = np.array(b.lo, dtype=np.float64)
     problem.hi = np.array(b.hi, dtype=np.float64)
     return problem
+
+
+def _restrict_to_regions(problem: Problem, b: _Builder) -> None:
+    """Every landmark of a class with a region lies in it: its named landmarks, and the slot
+    of each of its unlabelled observations (whichever landmark that one sees)."""
+    located = [(x, c) for x, c in zip(problem.named_x.tolist(), problem.named_class, strict=True)]
+    located += [(d.slot_x, d.landmark_class) for d in problem.decisions]
+    for x, cls in located:
+        prior = problem.class_priors.get(cls)
+        if prior is not None and prior.x is not None and prior.y is not None:
+            b.meet(x, prior.x)
+            b.meet(x + 1, prior.y)
 
 
 def _add_sensor_variables(problem: Problem, b: _Builder, log: Log) -> None:

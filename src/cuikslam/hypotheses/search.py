@@ -94,6 +94,9 @@ class SearchStatistics:
     """Children whose window around the decided pose is inconsistent in that pose's frame."""
     refuted_by_consistency: int = 0
     """Nodes or survivors of hull consistency refuted by the stronger consistency level."""
+    refuted_by_class_prior: int = 0
+    """Children breaking a class prior of the log: one landmark too many of a class, or two
+    distinct landmarks of a class closer than its separation."""
     survivors: int = 0
     """Leaves not refuted: complete hypotheses (all of them, reported or not)."""
     unexplored_subtrees: int = 0
@@ -220,6 +223,8 @@ class Explorer:
             return None
         [overlay] = graph.rebase([overlay])  # the root becomes the base, its rows the base set
         node = Node(0, overlay, (), None)
+        if self._breaks_class_prior(node):
+            return None
         if self.problem.has_sensor:
             node = self._unseen_scans(node, self.problem.complete_at_root())
         return node
@@ -253,8 +258,14 @@ class Explorer:
             child = self._after_decision(Node(k + 1, overlay, node.blocks, (number, node.assigned)))
             if child is not None:
                 out.append(child)
-        new = Node(k + 1, node.overlay, (*node.blocks, k), (len(all_xs), node.assigned))
-        if p.has_sensor and len(self._done_xs[k]):
+        new: Node | None = Node(
+            k + 1, node.overlay, (*node.blocks, k), (len(all_xs), node.assigned)
+        )
+        prior = p.class_priors.get(d.landmark_class)
+        if prior is not None and prior.at_most is not None and len(numbers) >= prior.at_most:
+            stats.refuted_by_class_prior += 1
+            new = None
+        if new is not None and p.has_sensor and len(self._done_xs[k]):
             overlay = self._add_unseen(
                 new.overlay, self._done_xs[k], self._done_radii[k], np.array([d.slot_x])
             )
@@ -270,9 +281,13 @@ class Explorer:
         return [replace(c, share=share) for c in out], options
 
     def _after_decision(self, child: Node) -> Node | None:
-        """Negative information once the decided observation completes its pose's scan,
-        then the window of its pose narrowed in that pose's frame."""
+        """The class prior's separation, negative information once the decided observation
+        completes its pose's scan, then the window of its pose narrowed in that pose's
+        frame."""
         d = self.problem.decisions[child.depth - 1]
+        if self._too_close(child, child.assigned[0]):
+            self.stats.refuted_by_class_prior += 1
+            return None
         if self.problem.has_sensor and d.completes_scan:
             child = self._unseen_scans(child, [d.pose])
         if child is None or self.local is None:
@@ -281,6 +296,43 @@ class Explorer:
             self.stats.refuted_in_local_frame += 1
             return None
         return child
+
+    def _breaks_class_prior(self, node: Node) -> bool:
+        """The named landmarks alone break a class prior: too many of a class, two too close,
+        or one outside its region (an empty box)."""
+        p = self.problem
+        for cls, prior in p.class_priors.items():
+            if prior.at_most is not None and p.named_class.count(cls) > prior.at_most:
+                self.stats.refuted_by_class_prior += 1
+                return True
+        lo, hi = self.graph.values(node.overlay, np.concatenate([p.named_x, p.named_x + 1]))
+        if np.any(lo > hi) or any(self._too_close(node, n) for n in range(self.n_named)):
+            self.stats.refuted_by_class_prior += 1
+            return True
+        return False
+
+    def _too_close(self, node: Node, number: int) -> bool:
+        """True when landmark ``number`` of ``node`` is proven closer to another landmark of
+        its class than the class prior's ``min_separation``: the farthest points of their
+        boxes are nearer than that (compared with a relative margin far above rounding)."""
+        cls = self.landmark_class(node, number)
+        prior = self.problem.class_priors.get(cls)
+        if prior is None or prior.min_separation is None:
+            return False
+        xs = self.landmark_xs(node)
+        others = [n for n in range(len(xs)) if n != number and self.landmark_class(node, n) == cls]
+        if not others:
+            return False
+        mine = np.array([xs[number], xs[number] + 1], dtype=np.int64)
+        cols = np.array([[xs[n], xs[n] + 1] for n in others], dtype=np.int64).ravel()
+        a_lo, a_hi = self.graph.values(node.overlay, mine)
+        o_lo, o_hi = self.graph.values(node.overlay, cols)
+        o_lo, o_hi = o_lo.reshape(-1, 2), o_hi.reshape(-1, 2)
+        with np.errstate(invalid="ignore", over="ignore"):
+            span = np.maximum(a_hi - o_lo, o_hi - a_lo)  # farthest gap per axis, >= 0
+            far2 = span[:, 0] * span[:, 0] + span[:, 1] * span[:, 1]
+        d = prior.min_separation
+        return bool(np.any(far2 * (1 + 1e-9) < d * d * (1 - 1e-9)))
 
     def _unseen_scans(self, node: Node, poses: list[int]) -> Node | None:
         """Add UNSEEN constraints between each of ``poses`` (whose scans ``node`` has fully

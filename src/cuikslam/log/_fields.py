@@ -17,6 +17,7 @@ from typing import Any
 
 from cuikslam.log.records import (
     Bounds,
+    ClassPrior,
     LandmarkPrior,
     Observation,
     Odometry,
@@ -187,6 +188,28 @@ def _positive(value: Any, name: str) -> float:
     return number
 
 
+def _class_prior(f: dict[str, Any], line: int) -> ClassPrior:
+    at_most = f.get("at_most")
+    if at_most is not None and (
+        isinstance(at_most, bool) or not isinstance(at_most, int) or at_most < 0
+    ):
+        raise Problem(f'field "at_most" must be a whole number >= 0, got {_show(at_most)}')
+    separation = f.get("min_separation")
+    if sum(f.get(k) is not None for k in ("x", "y")) == 1:
+        raise Problem('fields "x" and "y" come together: the region is the box x by y')
+    prior = ClassPrior(
+        landmark_class=_name(f["class"], "class"),
+        at_most=at_most,
+        min_separation=None if separation is None else _positive(separation, "min_separation"),
+        x=None if f.get("x") is None else _interval(f["x"], "x"),
+        y=None if f.get("y") is None else _interval(f["y"], "y"),
+        line=line,
+    )
+    if prior.at_most is None and prior.min_separation is None and prior.x is None:
+        raise Problem('a class record needs at least one of "at_most", "min_separation", "x"/"y"')
+    return prior
+
+
 def _sensor(f: dict[str, Any], line: int) -> SensorModel:
     margin = f.get("nearest_margin")
     return SensorModel(
@@ -208,6 +231,7 @@ RECORD_TYPES: dict[str, _Schema] = {
     ),
     "landmark": _Schema(("id", "class", "x", "y"), (), _landmark),
     "sensor": _Schema((), ("max_range", "fov", "nearest_margin"), _sensor),
+    "class": _Schema(("class",), ("at_most", "min_separation", "x", "y"), _class_prior),
 }
 
 _TYPE_LIST = ", ".join(f'"{t}"' for t in RECORD_TYPES)

@@ -17,6 +17,7 @@ from cuikslam._json import loads_object
 from cuikslam.log._fields import Problem, record_from_json
 from cuikslam.log.errors import LogFormatError
 from cuikslam.log.records import (
+    ClassPrior,
     LandmarkPrior,
     Log,
     Observation,
@@ -127,6 +128,7 @@ def _check_order(records: list[Record], path: str) -> None:
     scan_seen: dict[tuple[int, object, str], int] = {}
     sensor_line: int | None = None
     offset_line: int | None = None
+    class_line: dict[str, int] = {}
     no_offsets = (
         "observation offsets cannot be combined with a sensor record: its negative "
         "information is modelled from the robot's pose, not from the sensor's"
@@ -186,6 +188,12 @@ def _check_order(records: list[Record], path: str) -> None:
                         )
             case LandmarkPrior(landmark=landmark):
                 same_class(record, landmark)
+            case ClassPrior(landmark_class=cls):
+                earlier = class_line.setdefault(cls, record.line)
+                if earlier != record.line:
+                    fail(
+                        record, f'a second class record for "{cls}"; the first is on line {earlier}'
+                    )
             case SensorModel():
                 if sensor_line is not None:
                     fail(record, f"a second sensor record; the first is on line {sensor_line}")

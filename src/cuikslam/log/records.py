@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 __all__ = [
     "Bounds",
+    "ClassPrior",
     "LandmarkPrior",
     "Log",
     "Observation",
@@ -103,6 +104,25 @@ class LandmarkPrior:
 
 
 @dataclass(frozen=True)
+class ClassPrior:
+    """What the user knows of all the landmarks of class ``landmark_class`` (a map's rules).
+
+    At most ``at_most`` distinct landmarks of the class exist; any two distinct ones are at
+    least ``min_separation`` apart; every one lies inside the box ``x`` by ``y`` (a room's
+    walls). Each is optional (None). They hold whatever the correspondence, so the search
+    refutes a hypothesis that breaks one: a prior a user really has makes wrong "new
+    landmark" explanations impossible.
+    """
+
+    landmark_class: str
+    at_most: int | None = None
+    min_separation: float | None = None
+    x: Bounds | None = None
+    y: Bounds | None = None
+    line: int = 0
+
+
+@dataclass(frozen=True)
 class SensorModel:
     """What the robot's sensor is sure to see: the source of negative information.
 
@@ -119,7 +139,9 @@ class SensorModel:
     line: int = 0
 
 
-Record = PosePrior | Odometry | RelativePose | Observation | LandmarkPrior | SensorModel
+Record = (
+    PosePrior | Odometry | RelativePose | Observation | LandmarkPrior | ClassPrior | SensorModel
+)
 
 
 @dataclass
@@ -148,6 +170,11 @@ class Log:
     @property
     def landmark_priors(self) -> list[LandmarkPrior]:
         return [r for r in self.records if isinstance(r, LandmarkPrior)]
+
+    @property
+    def class_priors(self) -> dict[str, ClassPrior]:
+        """The class priors, by class (the reader allows one per class)."""
+        return {r.landmark_class: r for r in self.records if isinstance(r, ClassPrior)}
 
     @property
     def sensor(self) -> SensorModel | None:

@@ -16,6 +16,7 @@ from cuikslam._atomic import atomic_open
 from cuikslam.log.reader import parse_log_lines
 from cuikslam.log.records import (
     Bounds,
+    ClassPrior,
     LandmarkPrior,
     Log,
     Observation,
@@ -116,6 +117,15 @@ def _record_to_json(record: Record) -> dict[str, Any]:
                 "x": _bounds(record.x),
                 "y": _bounds(record.y),
             }
+        case ClassPrior():
+            fields = {"type": "class", "class": str(record.landmark_class)}
+            if record.at_most is not None:
+                fields["at_most"] = operator.index(record.at_most)
+            if record.min_separation is not None:
+                fields["min_separation"] = float(record.min_separation)
+            if record.x is not None and record.y is not None:
+                fields["x"], fields["y"] = _bounds(record.x), _bounds(record.y)
+            return fields
         case SensorModel():
             fields = {"type": "sensor"}
             if math.isfinite(record.max_range):
