@@ -78,7 +78,8 @@ def random_world(
 
     With ``corrupt``, one observation's range interval is moved 2 to 4 m off the truth.
     With ``relative``, each move is logged as a relative pose (dx, dy, dtheta) instead of
-    a turn and a distance.
+    a turn and a distance, and half the observations come from a sensor mounted off the
+    robot's centre (``offset``).
     """
     rng = np.random.default_rng(seed)
     turn_b, dist_b = rng.uniform(0.002, 0.05), rng.uniform(0.005, 0.1)
@@ -128,6 +129,14 @@ def random_world(
     bad = int(rng.integers(len(observations))) if corrupt and observations else -1
     for k, (i, m) in enumerate(observations):
         x, y, theta = poses[i]
+        offset = None
+        if relative and rng.random() < 0.5:
+            # a sensor mounted off the centre: (ox, oy) ahead and left, turned by ot
+            ox, oy, ot = (mpf(v) for v in rng.uniform([-0.3, -0.3, -0.5], [0.3, 0.3, 0.5]))
+            offset = tuple(_noisy(rng, v, 0.01) for v in (ox, oy, ot))
+            x = x + ox * MP.cos(theta) - oy * MP.sin(theta)
+            y = y + ox * MP.sin(theta) + oy * MP.cos(theta)
+            theta = theta + ot
         dx, dy = exact_landmarks[m][0] - x, exact_landmarks[m][1] - y
         rho = MP.hypot(dx, dy)
         bearing = MP.atan2(dy, dx) - theta
@@ -138,7 +147,11 @@ def random_world(
             shift = -shift if rng_lo > shift + 0.5 and rng.random() < 0.5 else shift
             rng_lo, rng_hi = rng_lo + shift, rng_hi + shift
         graph.add_observation(
-            i, f"L{m}", range=(rng_lo, rng_hi), bearing=_noisy(rng, bearing, bearing_b)
+            i,
+            f"L{m}",
+            range=(rng_lo, rng_hi),
+            bearing=_noisy(rng, bearing, bearing_b),
+            offset=offset,
         )
     observed = [int(name[1:]) for name in graph.landmark_ids]
     return World(graph, poses, [exact_landmarks[m] for m in observed])
