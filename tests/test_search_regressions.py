@@ -82,3 +82,24 @@ def test_a_budget_stop_without_survivors_is_not_a_failed_truth_check() -> None:
     assert done.returncode == 0, done.stdout + done.stderr
     assert "stopped on its budget" in done.stdout
     assert "Traceback" not in done.stderr
+
+
+def test_survivors_refuted_by_the_stronger_level_leave_the_summary(monkeypatch) -> None:
+    """A survivor the survivors' stronger level refutes is gone from the count and from
+    the correspondence summary, not only from the reported hypotheses."""
+    from cuikslam.hypotheses.search import Explorer
+    from cuikslam.simulate import simulate_paper
+
+    log, _ = simulate_paper(seed=0, unknown=True)
+    before = solve_unknown(log, consistency="hull")
+    assert len(before.hypotheses) == 2 and before.correspondence["survivors"] == 2
+
+    def refute_five_landmarks(self, node, level):  # stands for an lp refutation
+        return None if len(self.landmark_xs(node)) == 5 else node
+
+    monkeypatch.setattr(Explorer, "strengthen_node", refute_five_landmarks)
+    after = solve_unknown(log, consistency="lp")
+    assert [h.n_landmarks for h in after.hypotheses] == [4]
+    assert after.statistics["survivors"] == 1
+    assert after.correspondence["survivors"] == 1
+    assert "all 13 observations are associated for certain" in after.messages

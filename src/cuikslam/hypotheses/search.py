@@ -466,7 +466,8 @@ class _Tally:
     def __init__(self, explorer: Explorer, on_survivor: Callable[[list[int]], None] | None):
         self.explorer = explorer
         self.on_survivor = on_survivor
-        self.assignments: list[list[str]] = []
+        self.assignments: list[list[str] | None] = []
+        self._position: dict[tuple[int, ...], int] = {}
         pose_ids = sorted(explorer.problem.pose_x)
         xs = np.array([explorer.problem.pose_x[q] for q in pose_ids], dtype=np.int64)
         self._cols = (xs[:, None] + np.arange(3)).ravel()
@@ -484,10 +485,22 @@ class _Tally:
                 assignment[position] = p.named[n]
             for d, n in zip(p.decisions, decisions, strict=True):
                 assignment[d.position] = p.named[n] if n < len(p.named) else f"#{n}"
+            self._position[tuple(decisions)] = len(self.assignments)
             self.assignments.append(assignment)
         lo, hi = self.explorer.graph.values(node.overlay, self._cols)
         np.minimum(self._lo, lo, out=self._lo)
         np.maximum(self._hi, hi, out=self._hi)
+
+    def discard(self, node: Node) -> None:
+        """Forget a survivor proven impossible after the search (its pose boxes stay in the
+        hull, which remains a sound outer bound)."""
+        where = self._position.pop(tuple(node.decisions()), None)
+        if where is not None:
+            self.assignments[where] = None
+
+    def kept(self) -> list[list[str]]:
+        """The assignments of the survivors not discarded."""
+        return [a for a in self.assignments if a is not None]
 
     def poses(self) -> np.ndarray:
         """Hull over the survivors of every pose box, shape (n_poses, 3, 2)."""
@@ -664,6 +677,11 @@ def solve_unknown(
     survivors, level = _strengthen_survivors(
         explorer, outcome.survivors, consistency, strengthen_limit, messages
     )
+    alive = {tuple(n.decisions()) for n in survivors}
+    for node in outcome.survivors:
+        if tuple(node.decisions()) not in alive:  # refuted by the stronger level
+            tally.discard(node)
+            stats.survivors -= 1
     hypotheses = sorted(
         (_hypothesis(explorer, n) for n in survivors), key=lambda h: (h.n_landmarks, h.box_size)
     )
@@ -674,7 +692,7 @@ def solve_unknown(
         )
     correspondence = None
     if hypotheses:
-        summary = summarize(tally.assignments, set(problem.named), tally.poses())
+        summary = summarize(tally.kept(), set(problem.named), tally.poses())
         messages.append(describe(summary, stats.survivors))
         correspondence = {
             **summary_to_json(summary),
