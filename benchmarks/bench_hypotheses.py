@@ -5,8 +5,11 @@
     python benchmarks/bench_hypotheses.py --poses 200 --json out.json
 
 Each world runs in its own process (after a warm-up solve that loads the numba cache) so
-that its peak resident memory is its own. The search runs at level ``hull`` with a time
-budget (``--budget`` seconds): it ends complete, or stops and says so. "nodes" counts
+that its peak resident memory is its own. The search runs with a time budget
+(``--budget`` seconds): it ends complete, or stops and says so; its survivors get the
+``--level`` (``hull`` by default, ``lp`` refutes more). Then the witness search decides
+the reported survivors within ``--decide`` seconds: "proven" have a verified witness,
+"undec." are neither proven nor refuted. "nodes" counts
 expanded nodes of the depth-first search (one unlabelled observation decided in one
 partial hypothesis); "candidates" the (node, landmark) pairs considered. Also times the
 seed paper's experiment end to end (simulate + solve), best of five runs.
@@ -49,7 +52,7 @@ DENSE = {
 
 def _run_world(
     n_poses: int, n_landmarks: int, classes: tuple[str, ...], seed: int, world: dict,
-    budget: float, decide: float, queue: multiprocessing.Queue,
+    budget: float, decide: float, level: str, queue: multiprocessing.Queue,
 ) -> None:  # fmt: skip
     from cuikslam.hypotheses import solve_unknown
     from cuikslam.hypotheses.witness import certify
@@ -62,7 +65,9 @@ def _run_world(
     warm_up = simulate_random_world(seed=seed, n_poses=5, n_landmarks=3, unknown=True)[0]
     solve_unknown(warm_up, consistency="hull")
     start = time.perf_counter()
-    solution = solve_unknown(log, consistency="hull", deadline=start + budget)
+    solution = solve_unknown(
+        log, consistency=level, strengthen_during=0, deadline=start + budget
+    )  # fmt: skip
     elapsed = time.perf_counter() - start
     decide_start = time.perf_counter()
     if decide > 0:
@@ -81,6 +86,7 @@ def _run_world(
         {
             "poses": n_poses,
             "seed": seed,
+            "level": level,
             "landmarks": n_landmarks,
             "classes": len(classes),
             "observations": len(log.observations),
@@ -143,6 +149,10 @@ def main(argv: list[str] | None = None) -> int:
         "--decide", type=float, default=30.0,
         help="seconds the witness search may spend deciding the reported survivors (0: skip)",
     )  # fmt: skip
+    parser.add_argument(
+        "--level", choices=["hull", "lp"], default="hull",
+        help="level of the survivors ('lp' refutes some that 'hull' leaves; slower)",
+    )  # fmt: skip
     parser.add_argument("--no-paper", action="store_true")
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
@@ -165,7 +175,8 @@ def main(argv: list[str] | None = None) -> int:
             continue
         for seed in range(args.seed, args.seed + args.seeds):
             r = _in_process(
-                _run_world, n_poses, n_landmarks, classes, seed, world, args.budget, args.decide
+                _run_world, n_poses, n_landmarks, classes, seed, world, args.budget, args.decide,
+                args.level,
             )  # fmt: skip
             rows.append(r)
             print(f"{r['poses']:>8} {r['seed']:>8} {r['observations']:>8} "
