@@ -17,7 +17,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cuikslam import __version__
-from cuikslam.budget import COMMAND_TARGET, DEFAULT_TIME_BUDGET, MIN_COMMAND_BUDGET
+from cuikslam.budget import (
+    COMMAND_TARGET,
+    DEFAULT_TIME_BUDGET,
+    MIN_COMMAND_BUDGET,
+    SECONDS_PER_POSE,
+)
 from cuikslam.cli._common import (
     CommandError,
     check_figure_path,
@@ -239,7 +244,7 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
         help="how hard to narrow: 'hull' = fixpoint of the narrowing operators (fastest); "
         "'lp' = plus rounds of the rigorous polytope-hull operator (much tighter); "
         "'lp-split' = plus bisection of the widest headings (about 3x the time of 'lp'); "
-        "'auto' (default) = 'lp' up to 50 poses, 'hull' beyond",
+        "'auto' (default) = 'lp', at any length",
     )
     p.add_argument(
         "--max-hypotheses",
@@ -271,7 +276,7 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
         "soundly and says so (boxes at a weaker level, a hypothesis left 'not refuted', an "
         f"incomplete search); 'none' for no limit; 'auto' (default): the command aims at "
         f"{COMMAND_TARGET:g} s end to end, the solve gets what start-up left (at least "
-        f"{MIN_COMMAND_BUDGET:g} s)",
+        f"{MIN_COMMAND_BUDGET:g} s, and at least {SECONDS_PER_POSE:g} s per pose of the log)",
     )
 
 
