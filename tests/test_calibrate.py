@@ -5,10 +5,9 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from cuikslam.cli.main import main
@@ -18,6 +17,7 @@ from cuikslam.datasets.calibrate import (
     read_bounds_file,
     write_bounds_file,
 )
+from cuikslam.datasets.mrclam import MrclamBounds
 from cuikslam.datasets.mrclam_files import read_mrclam_tables
 from cuikslam.log.errors import LogFormatError
 from test_mrclam import _real, write_dataset
@@ -29,28 +29,30 @@ def folder(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_calibrated_bounds_hold_every_measurement_of_their_part(folder: Path) -> None:
-    calibration = calibrate_mrclam(folder, 1, duration=15.0)
+    base = replace(MrclamBounds(), range=0.0)  # the range bound all relative
+    calibration = calibrate_mrclam(folder, 1, duration=15.0, base=base)
     # The synthetic ranges err by 0.05 sin(k) and bearings by 0.03 cos(k) (k = 0, 1, ...).
-    assert calibration.errors["range"]["max"] <= calibration.bounds.range < 0.0501
     assert calibration.errors["bearing"]["max"] <= calibration.bounds.bearing < 0.0301
+    needed = calibration.errors["range_per_metre_needed"]["max"]
+    assert 0 < needed <= calibration.bounds.range_per_metre < needed * 1.01
+    assert calibration.bounds.range == 0.0
     outside = calibration.outside
     assert outside.observations_checked > 10 and outside.moves_checked >= 20
     assert (outside.ranges, outside.bearings, outside.moves) == (0, 0, 0)
-    # Checked on the rest of the run: the synthetic errors there stay within the same
-    # amplitudes, so only samples beyond the part's maxima can miss.
+    # Checked on the rest of the run: some sightings err more there, each one listed.
     later = count_outside(folder, 1, calibration.bounds, start=15.0)
-    assert later.observations_checked > 10
-    k = np.arange(round((15.0 - 0.5) / 0.7) + 1, 43)
-    assert later.ranges <= int((np.abs(0.05 * np.sin(k)) > calibration.bounds.range).sum())
+    assert later.observations_checked > 10 and later.ranges + later.bearings > 0
+    assert len(later.details) == later.ranges + later.bearings + later.moves
 
 
 def test_a_quantile_below_one_leaves_that_share_outside(folder: Path) -> None:
     tables = read_mrclam_tables(folder, 1)
-    calibration = calibrate_mrclam(tables, 1, quantile=0.8)
+    base = replace(MrclamBounds(), range=0.0)
+    calibration = calibrate_mrclam(tables, 1, quantile=0.8, base=base)
     outside = calibration.outside
     assert 0 < outside.ranges <= math.ceil(0.2 * outside.observations_checked)
-    full = calibrate_mrclam(tables, 1)
-    assert calibration.bounds.range < full.bounds.range
+    full = calibrate_mrclam(tables, 1, base=base)
+    assert calibration.bounds.range_per_metre < full.bounds.range_per_metre
 
 
 def test_the_bounds_file_round_trips_into_the_importer(folder: Path, tmp_path: Path) -> None:
@@ -119,3 +121,24 @@ def test_real_robot_1_first_half_bounds_on_the_second_half() -> None:
     later = count_outside(_real(), 1, calibration.bounds, start=370.0)
     # measured: 5 of 934 ranges, no bearing and no move outside
     assert later.observations_checked > 900 and later.ranges + later.bearings < 20
+
+
+def test_check_lists_what_misses_the_truth(folder: Path, tmp_path: Path, capsys) -> None:
+    out = tmp_path / "r.jsonl"
+    args = ["import", "mrclam", str(folder), "--robot", "1", "-o", str(out), "-q"]
+    assert main([*args, "--bearing-bound", "0.001"]) == 0  # the bearings err by 0.03 cos k
+    report = tmp_path / "check.json"
+    truth = str(tmp_path / "r.truth.json")
+    assert main(["calibrate", "check", str(out), "--truth", truth, "--json", str(report)]) == 0
+    printed = capsys.readouterr().out
+    doc = json.loads(report.read_text())
+    assert doc["ranges_outside"] == 0 and doc["moves_outside"] == 0
+    assert doc["bearings_outside"] == len(doc["outside_observations"]) > 20
+    assert f"0 ranges and {doc['bearings_outside']} bearings of" in printed
+    assert "bearing misses" in doc["details"][0] and "(line " in doc["details"][0]
+    (tmp_path / "short.truth.json").write_text(
+        json.dumps({**json.loads(Path(truth).read_text()), "assignment": []})
+    )
+    short = ["calibrate", "check", str(out), "--truth", str(tmp_path / "short.truth.json")]
+    assert main(short) == 2
+    assert "assigns 0 observations" in capsys.readouterr().err

@@ -48,6 +48,19 @@ def add_calibrate_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=_cmd_calibrate_mrclam)
 
+    p = datasets.add_parser(
+        "check",
+        help="count the measurements of a log whose interval misses the truth",
+        description="Compare each range, bearing and move of a log (any importer's, e.g. "
+        "the part imported with calibrated bounds) with its truth, count and list those "
+        "outside their intervals. Poses without truth are skipped.",
+    )
+    p.add_argument("log", help="the log (.jsonl)")
+    p.add_argument("--truth", required=True, help="its truth file (NAME.truth.json)")
+    p.add_argument("--json", help="write the counts and the list as JSON")
+    p.add_argument("-q", "--quiet", action="store_true")
+    p.set_defaults(func=_cmd_check)
+
 
 def _cmd_calibrate_mrclam(args: argparse.Namespace) -> int:
     from dataclasses import replace
@@ -95,8 +108,9 @@ def _cmd_calibrate_mrclam(args: argparse.Namespace) -> int:
         print(
             f"calibrated on robot {args.robot} from {args.start} s"
             + (f" for {args.duration} s" if args.duration else " to the end")
-            + f": range ±{b.range} m (errors: median {errors['range']['median']:.3f}, "
-            f"max {errors['range']['max']:.3f}), bearing ±{b.bearing} rad (median "
+            + f": range ±({b.range} m + {b.range_per_metre} × reading) (errors: median "
+            f"{errors['range']['median']:.3f}, max {errors['range']['max']:.3f} m), "
+            f"bearing ±{b.bearing} rad (median "
             f"{errors['bearing']['median']:.4f}, max {errors['bearing']['max']:.4f}), "
             f"velocity ±{b.velocity} m/s, turn rate ±{b.turn_rate} rad/s (lag {b.lag} s)",
             file=sys.stderr,
@@ -109,4 +123,34 @@ def _cmd_calibrate_mrclam(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
         print(f"wrote {args.output}", file=sys.stderr)
+    return 0
+
+
+def _cmd_check(args: argparse.Namespace) -> int:
+    import json
+
+    from cuikslam._atomic import atomic_write_text
+    from cuikslam.log.reader import read_log_file
+    from cuikslam.results.measurement_check import check_log, outside_to_json
+    from cuikslam.simulate.truth import read_truth_file
+
+    if args.json:
+        check_output_path(args.json)
+    log = read_log_file(args.log)
+    truth = read_truth_file(args.truth)
+    if len(truth.assignment) != len(log.observations):
+        raise CommandError(
+            f"{args.truth}: assigns {len(truth.assignment)} observations, the log "
+            f"{args.log} has {len(log.observations)}"
+        )
+    found = check_log(log, truth)
+    if args.json:
+        text = json.dumps(outside_to_json(found), indent=1) + "\n"
+        write_output(args.json, lambda: atomic_write_text(args.json, text))
+    if not args.quiet:
+        print(found.describe())
+        for line in found.details[:20]:
+            print(f"  {line}")
+        if len(found.details) > 20:
+            print(f"  … {len(found.details) - 20} more (--json lists them all)")
     return 0

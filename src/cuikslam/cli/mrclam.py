@@ -33,6 +33,7 @@ def add_bound_options(p: argparse.ArgumentParser) -> None:
     ``--lag`` (None when not given: the defaults or a bounds file decide)."""
     for name, unit in (
         ("range", "m"),
+        ("range-per-metre", "m/m"),
         ("bearing", "rad"),
         ("velocity", "m/s"),
         ("turn-rate", "rad/s"),
@@ -109,6 +110,7 @@ def bounds_from_args(args: argparse.Namespace):
         bounds = replace(bounds, **read_bounds_file(args.bounds))
     given = {
         "range": args.range_bound,
+        "range_per_metre": args.range_per_metre_bound,
         "bearing": args.bearing_bound,
         "velocity": args.velocity_bound,
         "turn_rate": args.turn_rate_bound,

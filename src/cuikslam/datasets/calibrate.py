@@ -5,8 +5,9 @@ them on another.
 the errors of each measurement type against the Vicon truth and returns the smallest
 bounds under which a chosen share (by default all) of that part's measurements hold the
 truth. :func:`count_outside` then imports *another* part with those bounds and counts
-the measurements whose interval misses the truth: the honest figure of how well the
-bounds carry over. :func:`write_bounds_file` and :func:`read_bounds_file` keep the
+the measurements whose interval misses the truth
+(:func:`cuikslam.results.measurement_check.check_log`): the honest figure of how well
+the bounds carry over. :func:`write_bounds_file` and :func:`read_bounds_file` keep the
 bounds in a small JSON file that ``cuikslam import mrclam --bounds FILE`` accepts::
 
     {"cuikslam_bounds": 1, "dataset": "mrclam",
@@ -15,7 +16,9 @@ bounds in a small JSON file that ``cuikslam import mrclam --bounds FILE`` accept
 
 * **Range, bearing**: the error of each landmark sighting against the range and bearing
   from the robot's Vicon pose (interpolated at the image's time) to the landmark's
-  Vicon position; the bound is the ``quantile`` of the absolute errors (1: the maximum).
+  Vicon position. The bearing bound is the ``quantile`` of the absolute errors (1: the
+  maximum); for the range, the constant part (``range``) is kept and ``range_per_metre``
+  is the quantile of what each sighting needs, ``(|error| - range) / reading``.
 * **Motion**: the commands' bounds (``velocity``, ``turn_rate``, with the lag) are
   scaled together from the defaults until the share ``quantile`` of the part's moves
   hold the truth (bisection on the scale; every candidate is imported and checked).
@@ -27,7 +30,7 @@ import json
 import math
 import os
 from collections.abc import Collection
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -36,100 +39,17 @@ from cuikslam._atomic import atomic_write_text
 from cuikslam.datasets.mrclam import MrclamBounds, read_mrclam
 from cuikslam.datasets.mrclam_files import MrclamTables, read_mrclam_tables
 from cuikslam.log.errors import LogFormatError
-from cuikslam.log.records import Log, Observation, Odometry, RelativePose
-from cuikslam.simulate.truth import GroundTruth
+from cuikslam.results.measurement_check import Outside, check_log
 
 __all__ = [
     "Calibration",
-    "Outside",
     "calibrate_mrclam",
     "count_outside",
-    "log_misses",
     "read_bounds_file",
     "write_bounds_file",
 ]
 
 FORMAT_VERSION = 1
-
-
-def _inside_angle(value: float, box: tuple[float, float]) -> bool:
-    lo, hi = box
-    return lo + (value - lo) % (2 * math.pi) <= hi
-
-
-@dataclass
-class Outside:
-    """Measurements of a log whose interval misses the truth (only those with truth)."""
-
-    ranges: int = 0
-    bearings: int = 0
-    observations_checked: int = 0
-    moves: int = 0
-    moves_checked: int = 0
-    outside_observations: list[int] = field(default_factory=list)
-    """Indices (log order) of the observations with a range or bearing outside."""
-
-    def describe(self) -> str:
-        return (
-            f"{self.ranges} ranges and {self.bearings} bearings of {self.observations_checked} "
-            f"observations, {self.moves} of {self.moves_checked} moves outside their intervals"
-        )
-
-
-def log_misses(log: Log, truth: GroundTruth) -> Outside:
-    """Count the measurements of ``log`` that miss ``truth`` (poses without truth skipped).
-
-    Compared in floating point (a calibration figure, not a proof): a range or bearing
-    against the distance and direction from the true pose to the true landmark (bearing
-    modulo 2π), a relative pose or odometry against the true poses at its two ends.
-    """
-    pose = dict(zip(truth.pose_ids, truth.poses_xyt.tolist(), strict=True))
-    mark = dict(zip(truth.landmark_ids, truth.landmarks_xy.tolist(), strict=True))
-    out = Outside()
-    observations = iter(truth.assignment)
-    index = 0
-    for record in log.records:
-        if isinstance(record, Observation):
-            lid = next(observations)
-            p = pose.get(record.pose)
-            if p is not None:
-                q = mark[lid]
-                out.observations_checked += 1
-                rng = math.hypot(q[0] - p[0], q[1] - p[1])
-                bearing = math.atan2(q[1] - p[1], q[0] - p[0]) - p[2]
-                bad_range = record.range is not None and not (
-                    record.range[0] <= rng <= record.range[1]
-                )
-                bad_bearing = record.bearing is not None and not _inside_angle(
-                    bearing, record.bearing
-                )
-                out.ranges += bad_range
-                out.bearings += bad_bearing
-                if bad_range or bad_bearing:
-                    out.outside_observations.append(index)
-            index += 1
-        elif isinstance(record, RelativePose | Odometry):
-            a, b = pose.get(record.source), pose.get(record.target)
-            if a is None or b is None:
-                continue
-            out.moves_checked += 1
-            out.moves += not _move_inside(record, a, b)
-    return out
-
-
-def _move_inside(record: RelativePose | Odometry, a: list[float], b: list[float]) -> bool:
-    if isinstance(record, Odometry):
-        dist = math.hypot(b[0] - a[0], b[1] - a[1])
-        return _inside_angle(b[2] - a[2], record.turn) and (
-            record.distance[0] <= dist <= record.distance[1]
-        )
-    c, s = math.cos(a[2]), math.sin(a[2])
-    dx, dy = b[0] - a[0], b[1] - a[1]
-    return (
-        record.dx[0] <= c * dx + s * dy <= record.dx[1]
-        and record.dy[0] <= -s * dx + c * dy <= record.dy[1]
-        and record.dtheta[0] <= b[2] - a[2] <= record.dtheta[1]
-    )
 
 
 @dataclass
@@ -145,25 +65,27 @@ class Calibration:
 
 def _sighting_errors(
     tables: MrclamTables, start: float, duration: float | None, truth_gap: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Range and bearing errors of the landmark sightings the importer keeps in the window
-    (imported with zero bounds, so each interval is the reading), where Vicon has truth."""
-    exact = replace(MrclamBounds(), range=0.0, bearing=0.0)
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Range readings, range errors and bearing errors of the landmark sightings the
+    importer keeps in the window (imported with zero bounds, so each interval is the
+    reading), where Vicon has truth."""
+    exact = replace(MrclamBounds(), range=0.0, range_per_metre=0.0, bearing=0.0)
     log, truth, _ = read_mrclam(
         tables, tables.robot, start=start, duration=duration, bounds=exact, truth_gap=truth_gap
     )
     pose = dict(zip(truth.pose_ids, truth.poses_xyt.tolist(), strict=True))
     mark = dict(zip(truth.landmark_ids, truth.landmarks_xy.tolist(), strict=True))
-    ranges, bearings = [], []
+    readings, ranges, bearings = [], [], []
     for obs, lid in zip(log.observations, truth.assignment, strict=True):
         p = pose.get(obs.pose)
         if p is None or obs.landmark_class != "landmark":
             continue
         q = mark[lid]
+        readings.append(obs.range[0])
         ranges.append(obs.range[0] - math.hypot(q[0] - p[0], q[1] - p[1]))
         direction = math.atan2(q[1] - p[1], q[0] - p[0]) - p[2]
         bearings.append(math.remainder(obs.bearing[0] - direction, 2 * math.pi))
-    return np.array(ranges), np.array(bearings)
+    return np.array(readings), np.array(ranges), np.array(bearings)
 
 
 def _round_up(value: float) -> float:
@@ -223,16 +145,18 @@ def calibrate_mrclam(
         raise ValueError(f"the quantile must be in (0, 1], got {quantile}")
     tables = folder if isinstance(folder, MrclamTables) else read_mrclam_tables(folder, robot)
     base = base or MrclamBounds()
-    range_error, bearing_error = _sighting_errors(tables, start, duration, truth_gap)
+    readings, range_error, bearing_error = _sighting_errors(tables, start, duration, truth_gap)
     if range_error.size == 0:
         raise LogFormatError(
             tables.folder,
             None,
             f"robot {robot}: no landmark sighting with Vicon truth in the window",
         )
+    # Each sighting needs range_per_metre >= (|error| - range) / reading to hold its truth.
+    per_metre = np.maximum(np.abs(range_error) - base.range, 0.0) / np.maximum(readings, 1e-9)
     bounds = replace(
         base,
-        range=_round_up(float(np.quantile(np.abs(range_error), quantile, method="higher"))),
+        range_per_metre=_round_up(float(np.quantile(per_metre, quantile, method="higher"))),
         bearing=_round_up(float(np.quantile(np.abs(bearing_error), quantile, method="higher"))),
     )
 
@@ -242,7 +166,7 @@ def calibrate_mrclam(
             tables, robot, start=start, duration=duration, bounds=trial,
             truth_gap=truth_gap, keyframe_gap=keyframe_gap,
         )  # fmt: skip
-        found = log_misses(log, truth)
+        found = check_log(log, truth)
         return found.moves, found.moves_checked
 
     allowed = lambda checked: math.floor((1 - quantile) * checked + 1e-9)  # noqa: E731
@@ -279,10 +203,11 @@ def calibrate_mrclam(
         },
         errors={
             "range": _stats(range_error),
+            "range_per_metre_needed": _stats(per_metre),
             "bearing": _stats(bearing_error),
             "motion_scale": {"of_default_velocity_and_turn_rate": hi},
         },
-        outside=log_misses(log, truth),
+        outside=check_log(log, truth),
     )
 
 
@@ -301,7 +226,7 @@ def count_outside(
         folder, robot, start=start, duration=duration, bounds=bounds,
         truth_gap=truth_gap, keyframe_gap=keyframe_gap,
     )  # fmt: skip
-    return log_misses(log, truth)
+    return check_log(log, truth)
 
 
 def write_bounds_file(

@@ -1,0 +1,147 @@
+"""Which measurements of a log miss their truth: the figure behind every bound's honesty.
+
+:func:`check_log` compares each measured interval of a log with the value the ground
+truth gives it: a range or bearing with the distance and direction from the true pose to
+the true landmark, an odometry or relative-pose move with the true poses at its two ends.
+Only measurements whose poses have a truth are checked (a truth may cover only some
+poses). This is how ``cuikslam calibrate`` reports what falls outside calibrated bounds,
+and how the outliers of a real log are found.
+
+Compared in floating point (a calibration figure, not a proof); angles modulo 2π.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from cuikslam.log.records import Log, Observation, Odometry, RelativePose
+from cuikslam.simulate.truth import GroundTruth
+
+__all__ = ["Outside", "check_log", "outside_to_json"]
+
+
+@dataclass
+class Outside:
+    """Measurements of a log whose interval misses the truth (only those with truth)."""
+
+    ranges: int = 0
+    bearings: int = 0
+    observations_checked: int = 0
+    moves: int = 0
+    moves_checked: int = 0
+    outside_observations: list[int] = field(default_factory=list)
+    """Indices (log order) of the observations with a range or bearing outside."""
+    details: list[str] = field(default_factory=list)
+    """One line per value outside its interval, in log order."""
+
+    def describe(self) -> str:
+        return (
+            f"{self.ranges} ranges and {self.bearings} bearings of {self.observations_checked} "
+            f"observations, {self.moves} of {self.moves_checked} moves outside their intervals"
+        )
+
+
+def _angle_excess(value: float, box: tuple[float, float]) -> float:
+    """How far the angle ``value`` (modulo 2π) lies outside ``box``; 0 inside."""
+    lo, hi = box
+    shifted = lo + (value - lo) % (2 * math.pi)
+    if shifted <= hi:
+        return 0.0
+    return min(shifted - hi, lo + 2 * math.pi - shifted)
+
+
+def _excess(value: float, box: tuple[float, float]) -> float:
+    return max(box[0] - value, value - box[1], 0.0)
+
+
+def _where(kind: str, index: int, record: Any) -> str:
+    line = getattr(record, "line", 0)
+    return f"{kind} {index}" + (f" (line {line})" if line else "")
+
+
+def check_log(log: Log, truth: GroundTruth) -> Outside:
+    """Count (and describe) the measurements of ``log`` whose interval misses ``truth``.
+
+    ``truth.assignment`` gives the true landmark of each observation, in log order.
+    """
+    pose = dict(zip(truth.pose_ids, truth.poses_xyt.tolist(), strict=True))
+    mark = dict(zip(truth.landmark_ids, truth.landmarks_xy.tolist(), strict=True))
+    out = Outside()
+    observations = iter(truth.assignment)
+    index = moves = 0
+    for record in log.records:
+        if isinstance(record, Observation):
+            lid = next(observations, None)
+            p = pose.get(record.pose)
+            if p is not None and lid is not None:
+                out.observations_checked += 1
+                q = mark[lid]
+                bad = False
+                if record.range is not None:
+                    rng = math.hypot(q[0] - p[0], q[1] - p[1])
+                    if (e := _excess(rng, record.range)) > 0:
+                        out.ranges += 1
+                        bad = True
+                        out.details.append(
+                            f"{_where('observation', index, record)}: range {rng:.4g} misses "
+                            f"[{record.range[0]:.4g}, {record.range[1]:.4g}] by {e:.3g}"
+                        )
+                if record.bearing is not None:
+                    bearing = math.atan2(q[1] - p[1], q[0] - p[0]) - p[2]
+                    if (e := _angle_excess(bearing, record.bearing)) > 0:
+                        out.bearings += 1
+                        bad = True
+                        out.details.append(
+                            f"{_where('observation', index, record)}: bearing misses "
+                            f"[{record.bearing[0]:.4g}, {record.bearing[1]:.4g}] by {e:.3g} rad"
+                        )
+                if bad:
+                    out.outside_observations.append(index)
+            index += 1
+        elif isinstance(record, RelativePose | Odometry):
+            a, b = pose.get(record.source), pose.get(record.target)
+            if a is not None and b is not None:
+                out.moves_checked += 1
+                missed = _move_misses(record, a, b)
+                if missed:
+                    out.moves += 1
+                    out.details.append(
+                        f"{_where('move', moves, record)} {record.source}->{record.target}: "
+                        + ", ".join(missed)
+                    )
+            moves += 1
+    return out
+
+
+def _move_misses(record: RelativePose | Odometry, a: list[float], b: list[float]) -> list[str]:
+    """The components of a move that miss the true poses ``a`` -> ``b``."""
+    if isinstance(record, Odometry):
+        dist = math.hypot(b[0] - a[0], b[1] - a[1])
+        values = [
+            ("turn", _angle_excess(b[2] - a[2], record.turn)),
+            ("distance", _excess(dist, record.distance)),
+        ]
+    else:
+        c, s = math.cos(a[2]), math.sin(a[2])
+        dx, dy = b[0] - a[0], b[1] - a[1]
+        values = [
+            ("dx", _excess(c * dx + s * dy, record.dx)),
+            ("dy", _excess(-s * dx + c * dy, record.dy)),
+            ("dtheta", _angle_excess(b[2] - a[2], record.dtheta)),
+        ]
+    return [f"{name} by {e:.3g}" for name, e in values if e > 0]
+
+
+def outside_to_json(found: Outside) -> dict[str, Any]:
+    """The counts and details as JSON-ready objects."""
+    return {
+        "observations_checked": found.observations_checked,
+        "ranges_outside": found.ranges,
+        "bearings_outside": found.bearings,
+        "moves_checked": found.moves_checked,
+        "moves_outside": found.moves,
+        "outside_observations": found.outside_observations,
+        "details": found.details,
+    }
