@@ -3,8 +3,9 @@
 Writes the 10,000-pose log (the seed's octagon driven 1,250 times, known correspondence,
 25,002 lines; :mod:`long_log`), then runs, each as a whole process timed by wall clock:
 
-(a) ``cuikslam solve LOG --json OUT`` with its defaults (what a user types), after one
-    untimed run so that numba's cache is filled: the figures are **warm**; and
+(a) ``cuikslam solve LOG --json OUT`` with its defaults (what a user types; more options
+    with ``--solve-args``), after one untimed run so that numba's cache is filled: the
+    figures are **warm**; and
 (b) this script's ``--codac`` mode on the same log: read the JSON Lines with the standard
     library, then narrow to the fixpoint with codac's ``CtcPolar`` in a Python loop (a
     FIFO queue of factors, one ``CtcPolar`` call per factor application, a factor queued
@@ -16,7 +17,7 @@ no wider than codac's (largest width ratio over every x, y and heading; headings
 at 2 pi); and, in this process, the log reader's and the result writer's cost per line.
 Results go to ``benchmarks/results/end_to_end.json``.
 
-    python benchmarks/bench_end_to_end.py [--laps 1250] [--repeat 3]
+    python benchmarks/bench_end_to_end.py [--laps 1250] [--repeat 3] [--solve-args ARGS]
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ import json
 import math
 import os
 import platform
+import shlex
 import statistics
 import subprocess
 import sys
@@ -229,6 +231,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--laps", type=int, default=1250, help="octagon laps (8 poses each)")
     parser.add_argument("--repeat", type=int, default=3, help="timed cuikslam runs")
     parser.add_argument("--codac-repeat", type=int, default=1, help="timed codac runs")
+    parser.add_argument(
+        "--solve-args",
+        default="",
+        metavar="ARGS",
+        help="more options for cuikslam solve, e.g. '--consistency hull' (default: none)",
+    )
     parser.add_argument("--codac", nargs=2, metavar=("LOG", "OUT"), help=argparse.SUPPRESS)
     parser.add_argument("--json", type=Path, default=HERE / "results" / "end_to_end.json")
     args = parser.parse_args(argv)
@@ -236,6 +244,7 @@ def main(argv: list[str] | None = None) -> int:
         codac_fixpoint(Path(args.codac[0]), Path(args.codac[1]))
         return 0
 
+    extra = shlex.split(args.solve_args)
     sys.path.insert(0, str(HERE))
     from long_log import write_octagon_log
 
@@ -244,7 +253,7 @@ def main(argv: list[str] | None = None) -> int:
         log = Path(folder) / "octagon.jsonl"
         write_octagon_log(log, args.laps, sensor=False)
         ours_out, codac_out = Path(folder) / "cuikslam.json", Path(folder) / "codac.json"
-        solve = [*cuikslam, "solve", str(log), "--json", str(ours_out)]
+        solve = [*cuikslam, "solve", str(log), "--json", str(ours_out), *extra]
         run_process(solve)  # untimed: numba's cache filled, the OS's file cache too
         ours = [run_process(solve) for _ in range(args.repeat)]
         codac_cmd = [sys.executable, __file__, "--codac", str(log), str(codac_out)]
@@ -258,7 +267,7 @@ def main(argv: list[str] | None = None) -> int:
     figures = {
         "log": f"octagon, {args.laps} laps, {8 * args.laps + 1} poses, known correspondence",
         "lines": stages["lines"],
-        "command": "cuikslam solve LOG --json OUT (defaults; warm numba cache)",
+        "command": " ".join(["cuikslam solve LOG --json OUT", *extra]) + " (warm numba cache)",
         "cuikslam_level": level,
         "cuikslam_wall_s": [w for w, _ in ours],
         "cuikslam_peak_rss_mb": max(m for _, m in ours),
