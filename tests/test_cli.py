@@ -20,6 +20,8 @@ from pathlib import Path
 
 import pytest
 
+from cuikslam.log.reader import read_log_file
+
 TIMEOUT = 120
 CLI = [sys.executable, "-m", "cuikslam.cli.main"]
 CSV_HEADER = [
@@ -618,3 +620,20 @@ def test_malformed_truth(
     plotted = run("plot", "result.json", "-o", "fig.png", "--truth", "bad.truth.json", cwd=tmp_path)
     assert_input_error(plotted, *fragments)
     assert listing(tmp_path) == before
+
+
+def test_solve_streams_every_survivor_to_a_file(tmp_path: Path) -> None:
+    """--survivors: one JSON line per survivor of the search, new landmarks as "+k"."""
+    assert run("simulate", "paper", "--unknown", "-o", "trip.jsonl", cwd=tmp_path).returncode == 0
+    result = run("solve", "trip.jsonl", "--survivors", "all.jsonl", "-q", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    lines = (tmp_path / "all.jsonl").read_text(encoding="utf-8").splitlines()
+    rows = [json.loads(line)["assignment"] for line in lines]
+    log = read_log_file(tmp_path / "trip.jsonl")
+    assert len(rows) == 2
+    assert all(len(row) == len(log.observations) for row in rows)
+    assert all(name.startswith("+") for row in rows for name in row)
+    assert sorted(len(set(row)) for row in rows) == [4, 5]
+    bad = run("solve", "trip.jsonl", "--survivors", "missing/all.jsonl", "-q", cwd=tmp_path)
+    assert bad.returncode == 2 and "missing/all.jsonl" in bad.stderr
+    assert "Traceback" not in bad.stderr

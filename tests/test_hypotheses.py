@@ -227,9 +227,12 @@ def test_a_node_budget_stops_the_search_with_an_account() -> None:
     assert solution.statistics["unexplored_subtrees"] > 0
     assert 0 < solution.statistics["explored_fraction"] < 1
     assert any("INCOMPLETE" in m and "unexplored" in m for m in solution.messages)
-    seen: list[list[int]] = []
+    seen: list[list[str]] = []
     streamed = solve_unknown(log, consistency="hull", on_survivor=seen.append, local_frame=False)
     assert len(seen) == streamed.statistics["survivors"] == len(streamed.hypotheses)
+    assert sorted(map(partition, seen)) == sorted(
+        partition(h.assignment) for h in streamed.hypotheses
+    )
 
 
 def test_negative_information_refutes_a_duplicate_landmark() -> None:

@@ -115,6 +115,7 @@ def solve(
     rtol: float = DEFAULT_RTOL,
     progress: ProgressCallback | None = None,
     time_budget: float | None = DEFAULT_TIME_BUDGET,
+    on_survivor: Callable[[list[str]], None] | None = None,
 ) -> Solution:
     """Solve ``log`` and return every hypothesis that narrowing could not refute.
 
@@ -134,6 +135,10 @@ def solve(
     :mod:`cuikslam.narrowing.consistency`) in ``Solution.consistency`` and each
     hypothesis' ``consistency``, a hypothesis left ``not refuted`` rather than proven, an
     incomplete search, each with a message in ``Solution.messages``.
+
+    ``on_survivor``, with unknown correspondence, is called with the assignment of every
+    survivor of the search as it is found (see
+    :func:`~cuikslam.hypotheses.solve_unknown`): all of them, however many are reported.
     """
     ensure_round_to_nearest()
     warm_up_s = warm_up(log.has_unknown_correspondence)
@@ -151,6 +156,7 @@ def solve(
             rtol=rtol,
             progress=progress,
             deadline=portion(deadline, SEARCH_SHARE),
+            on_survivor=on_survivor,
         )
     else:
         solution = _solve_known(log, consistency, rtol, progress, deadline)

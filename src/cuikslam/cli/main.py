@@ -98,6 +98,7 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         strengthen_during=args.strengthen_during,
         time_budget=args.time_budget,
         started=STARTED,
+        survivors_path=args.survivors,
     )
 
 
@@ -245,6 +246,13 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
         "'lp' = plus rounds of the rigorous polytope-hull operator (much tighter); "
         "'lp-split' = plus bisection of the widest headings (about 3x the time of 'lp'); "
         "'auto' (default) = 'lp', at any length",
+    )
+    p.add_argument(
+        "--survivors",
+        metavar="FILE",
+        help="write every survivor of the correspondence search to FILE, one JSON line "
+        '{"assignment": [...]} each, as it is found (all of them, beyond --max-hypotheses; '
+        '"+k" is the k-th landmark a hypothesis adds)',
     )
     p.add_argument(
         "--max-hypotheses",

@@ -2,13 +2,16 @@
 
 from __future__ import annotations
 
+import json
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 
 from rich.console import Console
 
+from cuikslam._atomic import atomic_open
 from cuikslam.budget import command_budget
-from cuikslam.cli._common import check_output_path, progress_bar, write_output
+from cuikslam.cli._common import CommandError, check_output_path, progress_bar, write_output
 from cuikslam.log.reader import read_log_file
 from cuikslam.log.records import Log
 from cuikslam.results.io import write_result_csv, write_result_file
@@ -168,6 +171,27 @@ def _rank_of_truth(solution: Solution, true_partition: list[int | str], named: s
     return 0
 
 
+@contextmanager
+def _survivor_stream(
+    path: str | None,
+) -> Iterator[Callable[[list[str]], None] | None]:
+    """A callback writing each survivor's assignment to ``path`` as one JSON line, as the
+    search finds it (memory stays flat however many survive); the file appears complete
+    at the end of the solve, or not at all."""
+    if path is None:
+        yield None
+        return
+    try:
+        with atomic_open(path) as out:
+
+            def write(assignment: list[str]) -> None:
+                out.write(json.dumps({"assignment": assignment}) + "\n")
+
+            yield write
+    except OSError as err:
+        raise CommandError(f"{path}: cannot write: {err.strerror or err}") from None
+
+
 def run_solve(
     *,
     log_path: str,
@@ -183,10 +207,11 @@ def run_solve(
     strengthen_during: int = 0,
     time_budget: float | str | None = "auto",
     started: float | None = None,
+    survivors_path: str | None = None,
 ) -> int:
     # Everything that can be refused is checked before the solve (and before the solver,
     # slow to import, is loaded): a bad log or output path fails fast and writes nothing.
-    for path in (json_path, csv_path):
+    for path in (json_path, csv_path, survivors_path):
         if path:
             check_output_path(path)
     log = read_log_file(log_path)
@@ -197,7 +222,10 @@ def run_solve(
     if time_budget == "auto":  # what start-up left of the command's target, within limits
         spent = 0.0 if started is None else time.perf_counter() - started
         time_budget = command_budget(spent, len(log.pose_ids))
-    with progress_bar("solving", enabled=not quiet) as progress:
+    with (
+        progress_bar("solving", enabled=not quiet) as progress,
+        _survivor_stream(survivors_path) as on_survivor,
+    ):
         solution = solve(
             log,
             consistency=consistency,
@@ -206,6 +234,7 @@ def run_solve(
             strengthen_during=strengthen_during,
             progress=progress,
             time_budget=time_budget,
+            on_survivor=on_survivor,
         )
     if json_path:
         write_output(json_path, lambda: write_result_file(solution, json_path))

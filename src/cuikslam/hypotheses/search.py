@@ -463,10 +463,14 @@ def explore(
 class _Tally:
     """What every survivor contributes to the summary, reported in detail or not."""
 
-    def __init__(self, explorer: Explorer, on_survivor: Callable[[list[int]], None] | None):
+    def __init__(self, explorer: Explorer, on_survivor: Callable[[list[str]], None] | None):
         self.explorer = explorer
         self.on_survivor = on_survivor
         self.assignments: list[list[str] | None] = []
+        self.new_mark = "+"
+        """Prefix of the landmarks a hypothesis adds (longer if a log id starts with it)."""
+        while any(name.startswith(self.new_mark) for name in explorer.problem.named):
+            self.new_mark += "+"
         self._position: dict[tuple[int, ...], int] = {}
         pose_ids = sorted(explorer.problem.pose_x)
         xs = np.array([explorer.problem.pose_x[q] for q in pose_ids], dtype=np.int64)
@@ -476,17 +480,21 @@ class _Tally:
 
     def add(self, node: Node) -> None:
         decisions = node.decisions()
-        if self.on_survivor is not None:
-            self.on_survivor(decisions)
         p = self.explorer.problem
-        if len(self.assignments) < MAX_TALLIED:
+        tallied = len(self.assignments) < MAX_TALLIED
+        if tallied or self.on_survivor is not None:
             assignment = [""] * p.n_observations
             for position, n in p.named_assignment.items():
                 assignment[position] = p.named[n]
+            n_named, mark = len(p.named), self.new_mark
             for d, n in zip(p.decisions, decisions, strict=True):
-                assignment[d.position] = p.named[n] if n < len(p.named) else f"#{n}"
-            self._position[tuple(decisions)] = len(self.assignments)
-            self.assignments.append(assignment)
+                # new landmarks are numbered in the order the log first sees them
+                assignment[d.position] = p.named[n] if n < n_named else f"{mark}{n - n_named + 1}"
+            if self.on_survivor is not None:
+                self.on_survivor(assignment)
+            if tallied:
+                self._position[tuple(decisions)] = len(self.assignments)
+                self.assignments.append(assignment)
         lo, hi = self.explorer.graph.values(node.overlay, self._cols)
         np.minimum(self._lo, lo, out=self._lo)
         np.maximum(self._hi, hi, out=self._hi)
@@ -604,7 +612,7 @@ def solve_unknown(
     progress: Callable[[int, int], None] | None = None,
     deadline: float | None = None,
     max_nodes: int | None = None,
-    on_survivor: Callable[[list[int]], None] | None = None,
+    on_survivor: Callable[[list[str]], None] | None = None,
     local_frame: bool = True,
 ) -> Solution:
     """Solve a log whose observations may lack landmark ids; return the surviving hypotheses.
@@ -633,7 +641,11 @@ def solve_unknown(
     max_nodes : int, optional
         Node expansions after which the search stops, incomplete.
     on_survivor : callable, optional
-        Called with the decisions (landmark numbers) of every survivor as it is found.
+        Called with the assignment of every survivor of the search as it is found (a
+        landmark per observation, in log order: the log's ids, and ``"+k"`` for the k-th
+        landmark the hypothesis adds, in the order the log first sees them). The stronger
+        level may still refute some of them afterwards (``statistics['survivors']`` counts
+        those left).
     local_frame : bool
         Narrow the window of each decided pose in that pose's frame, where relative
         geometry is tight although absolute boxes are wide (:mod:`.local`); off only to
