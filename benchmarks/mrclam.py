@@ -61,7 +61,8 @@ def main() -> None:
                 rest = count_outside(tables, robot, cal.bounds, start=args.split)
                 row[f"q{q}"] = {
                     "bounds": {k: getattr(cal.bounds, k)
-                               for k in ("range", "bearing", "velocity", "turn_rate")},
+                               for k in ("range", "range_per_metre", "bearing", "velocity",
+                                         "turn_rate")},
                     "calibration_outside": [cal.outside.ranges, cal.outside.bearings,
                                             cal.outside.moves],
                     "rest_outside": {"ranges": rest.ranges, "bearings": rest.bearings,
