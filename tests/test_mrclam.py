@@ -292,3 +292,16 @@ def test_other_robots_vicon_is_read_only_when_kept(tmp_path: Path) -> None:
     read_mrclam(folder, 1)  # robots dropped: robot 2's file is never read
     with pytest.raises(LogFormatError, match=r"Robot2_Groundtruth\.dat:1"):
         read_mrclam(folder, 1, robots="class")
+
+
+@pytest.mark.slow
+def test_real_default_bounds_leave_only_the_documented_outliers() -> None:
+    from cuikslam.results.measurement_check import check_log
+
+    folder = _real()
+    found = {r: check_log(*read_mrclam(folder, r)[:2]) for r in range(1, 6)}
+    # docs/real-data.md: 5 ranges and 9 bearings of 15,365 sightings, 2 of 11,966 moves
+    assert sum(f.observations_checked for f in found.values()) == 15365
+    assert sum(f.ranges for f in found.values()) == 5
+    assert sum(f.bearings for f in found.values()) == 9
+    assert sum(f.moves for f in found.values()) == 2
