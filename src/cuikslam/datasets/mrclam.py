@@ -296,7 +296,9 @@ def _window(
         raise LogFormatError(
             tables.folder,
             None,
-            f"the window {start} s + {duration} s holds no command of robot {tables.robot} "
+            f"the window from {start} s"
+            + (f" for {duration} s" if duration is not None else " to the end")
+            + f" holds no command of robot {tables.robot} "
             f"with Vicon (commands last {commands[-1] - commands[0]:.1f} s)",
         )
     return float(t0), float(t1)
