@@ -637,3 +637,12 @@ def test_solve_streams_every_survivor_to_a_file(tmp_path: Path) -> None:
     bad = run("solve", "trip.jsonl", "--survivors", "missing/all.jsonl", "-q", cwd=tmp_path)
     assert bad.returncode == 2 and "missing/all.jsonl" in bad.stderr
     assert "Traceback" not in bad.stderr
+
+
+def test_cli_defaults_match_the_library() -> None:
+    """The CLI does not import the search at start-up; its default must not drift."""
+    from cuikslam.cli.main import build_parser
+    from cuikslam.hypotheses.search import DEFAULT_MAX_HYPOTHESES
+
+    args = build_parser().parse_args(["solve", "trip.jsonl"])
+    assert args.max_hypotheses == DEFAULT_MAX_HYPOTHESES

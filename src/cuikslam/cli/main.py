@@ -257,9 +257,10 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--max-hypotheses",
         type=_positive_int,
-        default=10_000,
+        default=100,  # hypotheses.search.DEFAULT_MAX_HYPOTHESES (not imported: start-up time)
         help="surviving correspondence hypotheses reported in detail (the best-ranked); the "
-        "search explores and counts all of them (default %(default)s)",
+        "search explores and counts all of them, and --survivors writes all of them "
+        "(default %(default)s)",
     )
     p.add_argument(
         "--strengthen-limit",

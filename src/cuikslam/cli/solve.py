@@ -202,7 +202,7 @@ def run_solve(
     console: Console,
     table: bool | None = None,
     consistency: str = "auto",
-    max_hypotheses: int = 10_000,
+    max_hypotheses: int = 100,
     strengthen_limit: int = 100,
     strengthen_during: int = 0,
     time_budget: float | str | None = "auto",

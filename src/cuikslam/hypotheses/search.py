@@ -54,7 +54,7 @@ __all__ = [
     "solve_unknown",
 ]
 
-DEFAULT_MAX_HYPOTHESES = 10_000
+DEFAULT_MAX_HYPOTHESES = 100
 """Survivors reported in detail at most (the best-ranked); the search itself explores all."""
 DEFAULT_STRENGTHEN_LIMIT = 100
 """Survivors narrowed to the stronger consistency level at most (else the best-ranked)."""
