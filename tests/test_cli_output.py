@@ -271,3 +271,21 @@ def test_check_truth_decides_floats_and_fractions_exactly() -> None:
     report = check_truth(h, [7, 3], outside)
     assert len(report.misses) == 3 and report.checked == 6
     assert check_truth(h, [7, 3], [(1.5, 1.5, 1.5 + 2 * math.pi), (0.0, 0.0, 0.0)]).ok
+
+
+def test_truth_file_with_a_pose_id_twice_is_refused(tmp_path: Path) -> None:
+    from cuikslam.log.errors import LogFormatError
+    from cuikslam.simulate.truth import read_truth_file
+
+    doc = {
+        "poses": {str(i): [0.0, 0.0, 0.0] for i in range(3000)} | {"07": [1.0, 1.0, 0.0]},
+        "landmarks": {},
+        "assignment": [],
+    }
+    path = tmp_path / "t.truth.json"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    with pytest.raises(LogFormatError, match="pose id '07' appears twice"):
+        read_truth_file(path)
+    del doc["poses"]["07"]
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    assert read_truth_file(path).pose_ids == list(range(3000))

@@ -222,14 +222,16 @@ def _truth_from_json(doc: Any) -> GroundTruth:
         raise _TruthLayoutError(f'"{keys[0]}" must be a list of landmark ids')
 
     pose_ids: list[int] = []
+    seen: set[int] = set()
     poses_exact: list[tuple[Fraction, Fraction, Fraction]] = []
     for key, xyt in poses.items():
         try:
             pose_ids.append(int(key))
         except ValueError:
             raise _TruthLayoutError(f"pose id {key!r} is not an integer") from None
-        if pose_ids[-1] in pose_ids[:-1]:
+        if pose_ids[-1] in seen:
             raise _TruthLayoutError(f"pose id {key!r} appears twice")
+        seen.add(pose_ids[-1])
         if not (isinstance(xyt, list) and len(xyt) == 3):
             raise _TruthLayoutError(f"pose {key}: expected [x, y, theta], got {_show(xyt)}")
         x, y, theta = (_exact(v, f"pose {key}") for v in xyt)
