@@ -12,7 +12,6 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from cuikslam.budget import OutOfTime, expired
 from cuikslam.hypotheses.witness._numeric import (
@@ -214,6 +213,8 @@ class Starts:
         best, best_cost = starts[0], math.inf
         for xy in starts[:16]:
             try:
+                from scipy.optimize import least_squares  # loaded when a witness is sought
+
                 fit = least_squares(residuals, xy, method="trf", max_nfev=50)
             except ValueError:
                 continue

@@ -20,7 +20,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from cuikslam.budget import OutOfTime, blas_single_thread, expired
 from cuikslam.hypotheses.witness._numeric import finite
@@ -135,6 +134,8 @@ def _solve_margins(
                 r, J = residuals(full(z), jacobian=True)
                 memo[key] = (finite(r), finite(J[:, free], nan=0.0))
             return memo[key]
+
+        from scipy.optimize import least_squares  # loaded when a witness is sought
 
         result = least_squares(
             lambda z: both(z)[0], z0, jac=lambda z: both(z)[1], bounds=(lb, ub),

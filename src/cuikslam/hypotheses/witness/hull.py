@@ -15,7 +15,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import minimize
 
 from cuikslam.hypotheses.witness._numeric import half_width, uniform
 from cuikslam.hypotheses.witness.find import find_point
@@ -188,6 +187,8 @@ def inner_hull(
         nonlocal runs
         runs += 1
         try:
+            from scipy.optimize import minimize  # loaded when a witness is sought
+
             res = minimize(
                 objective(index, sign), z0, jac=True, method="SLSQP", bounds=bounds,
                 constraints=constraints, options={"maxiter": max_iterations, "ftol": 1e-13},
