@@ -9,8 +9,8 @@ Examples
 >>> import numpy as np
 >>> from cuikslam import interval as ia
 >>> x = np.array([[1.0, 2.0], [-1.0, 3.0]])
->>> ia.sqr(x).tolist()  # products move one ulp outward
-[[0.9999999999999999, 4.000000000000001], [0.0, 9.000000000000002]]
+>>> ia.sqr(x).tolist()  # products move outward by a few ulps at most
+[[0.9999999999999998, 4.000000000000001], [0.0, 9.000000000000002]]
 >>> ia.add(x, x).tolist()  # exact sums stay exact
 [[2.0, 4.0], [-2.0, 6.0]]
 >>> bool(ia.is_empty(ia.intersect(np.array([0.0, 1.0]), np.array([2.0, 3.0]))))
