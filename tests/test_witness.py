@@ -460,3 +460,16 @@ def test_every_survivor_of_the_seed_experiment_is_proven() -> None:
     assert [h.status for h in solution.hypotheses] == [PROVEN, PROVEN]
     assert sorted(h.n_landmarks for h in solution.hypotheses) == [4, 5]
     assert solution.statistics["undecided_hypotheses"] == 0
+
+
+def test_certify_shares_a_total_work_limit() -> None:
+    """The hypotheses share ``max_total_evaluations``: the search stops between rounds once
+    they have used it, and says so."""
+    log, _ = simulate_paper(seed=0, unknown=True)
+    solution = solve(log, certify_limit=0, time_budget=None)
+    stats = certify(log, solution, max_total_evaluations=1)
+    assert stats.out_of_work and not stats.out_of_time
+    assert stats.starts <= 4  # the first round (two starts each at most), then the limit
+    assert [h.status for h in solution.hypotheses] == [PROVEN, NOT_REFUTED]
+    assert solution.statistics["undecided_hypotheses"] == 1
+    assert any("in all" in m for m in solution.messages)

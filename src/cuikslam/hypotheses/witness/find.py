@@ -37,6 +37,8 @@ from cuikslam.results.solution import NOT_REFUTED, PROVEN, Solution
 _HOPELESS = 0.5
 """A hinge residual (in half-widths) beyond which aiming closer to the bounds is not tried."""
 MAX_EVALUATIONS = 20_000
+MAX_TOTAL_EVALUATIONS = 40_000
+"""Residual evaluations one :func:`certify` may use for all its hypotheses together."""
 """Residual evaluations (each with its Jacobian) one hypothesis' search may use at most."""
 CENTRE_EVALUATIONS = 50
 """Evaluations of the least-squares estimate that starts each local search."""
@@ -344,6 +346,7 @@ def certify(
     use_sensor: bool = True,
     deadline: float | None = None,
     max_evaluations: int = MAX_EVALUATIONS,
+    max_total_evaluations: int = MAX_TOTAL_EVALUATIONS,
 ) -> WitnessStatistics:
     """Mark every hypothesis of ``solution`` whose consistency is proven.
 
@@ -357,7 +360,8 @@ def certify(
     The hypotheses share the budget round-robin: every one gets its first two starts (most
     consistent hypotheses are proven by the first), then the unproven ones get random
     starts in growing rounds, until each is proven, has used ``max_evaluations`` residual
-    evaluations (or ``2 + restarts`` starts, when given), or ``deadline`` (a
+    evaluations (or ``2 + restarts`` starts, when given), all of them together have used
+    ``max_total_evaluations`` (checked between rounds), or ``deadline`` (a
     :func:`time.perf_counter` value) passes. Returns the search's
     :class:`WitnessStatistics`; they are also recorded in ``solution.statistics``
     (``proven_hypotheses``, ``undecided_hypotheses``, ``witness_starts``,
@@ -380,6 +384,9 @@ def certify(
     while True:
         open_ = [s for s in searches if not s.finished and (most is None or s.tried < most)]
         if not open_:
+            break
+        if stats.evaluations >= max_total_evaluations:
+            stats.out_of_work = True
             break
         for search in open_:
             search.run(batch if most is None else min(batch, most - search.tried))
@@ -415,7 +422,8 @@ def certify(
         why = (
             "its time budget"
             if stats.out_of_time
-            else f"its work limit ({max_evaluations} evaluations per hypothesis)"
+            else f"its work limit ({max_evaluations} evaluations per hypothesis, "
+            f"{max_total_evaluations} in all)"
             if stats.out_of_work
             else "its starts"
         )
