@@ -108,8 +108,8 @@ def write_log(world: str, n_poses: int, seed: int, folder: Path) -> Path:
         write_log_file(octagon_log(n_poses, seed), path)
     else:
         subprocess.run(
-            [sys.executable, "-m", "cuikslam", "simulate", "random", "--seed", str(seed),
-             "--poses", str(n_poses), "-o", str(path), "-q"],
+            [sys.executable, "-c", "from cuikslam.cli.main import entry; entry()", "simulate",
+             "random", "--seed", str(seed), "--poses", str(n_poses), "-o", str(path), "-q"],
             check=True, cwd=ROOT,
         )  # fmt: skip
     return path

@@ -46,11 +46,12 @@ COMMAND_TARGET = 4.0
 the solve gets what start-up (imports, loading the compiled kernels) left of it..."""
 MIN_COMMAND_BUDGET = 1.0
 """...but at least this much..."""
-SECONDS_PER_POSE = 0.05
-"""...and at least this much per pose of the log: the default level's LP sweeps cost a
-roughly constant time per pose (``benchmarks/bench_long_logs.py``), so a long log gets the
-time it needs to reach the full level instead of being cut to ``lp (budget)`` after its
-first few hundred poses."""
+SECONDS_PER_POSE = 0.15
+"""...and at least this much per pose of the log. The default level's LP sweeps cost a
+roughly constant time per pose (``benchmarks/bench_long_logs.py``: 0.11-0.15 s per pose
+on the octagon driven 100 to 1,000 poses, on a loaded 2-core machine), so a
+long log gets time in proportion: its first sweep reaches the end of the log, and the
+result says ``lp (budget)`` when the later sweeps were cut."""
 STRENGTHEN_SHARE = 0.7
 """Fraction of the time left after hull narrowing that the stronger level may use; the
 witness search gets the rest (and whatever the stronger level did not need)."""

@@ -77,14 +77,15 @@ applications per factor of the window (the LPs' relaxation is tighter on narrowe
 the cap keeps the cost of a window independent of the log's length)."""
 MAX_LP_ROUNDS = 12
 MIN_GAIN = 0.005
-"""Stop after a full round that shrinks the total width by less than this fraction."""
+"""Stop after a sweep that shrinks the total width by less than this fraction."""
 FULL_ROUND_EVERY = 3
+"""Every this many sweeps, stale bounds are solved again all the same."""
 UNSTALE_SHRINK = 0.02
 """A window's stale bounds are solved again once the widths of its variables have shrunk
 by about this fraction since its last LPs (in the mean of their logarithms)."""
 STALE_GAIN = 0.01
-"""A bound whose LP moved it by less than this fraction of its width is left alone until
-the next full sweep."""
+"""A bound whose LP moved it by less than this fraction of its width is left alone (see
+``_polytope_rounds``)."""
 SPLIT_HEADINGS = 2
 """Headings bisected by the ``lp-split`` level (the widest first)."""
 BUDGET_SUFFIX = " (budget)"
@@ -352,8 +353,9 @@ def _polytope_rounds(
 
     Before a window's LPs its factors are propagated (capped, see ``LOCAL_SPAN``), so each
     window starts from what the previous one found. A bound whose last LP moved it by less
-    than ``STALE_GAIN`` of its width is not solved again until the next full sweep (every
-    ``FULL_ROUND_EVERY``-th). After each sweep the whole graph is propagated. Returns
+    than ``STALE_GAIN`` of its width is *stale*: not solved again until its window's boxes
+    have shrunk by ``UNSTALE_SHRINK`` since that window's last LPs, or the next full sweep
+    (every ``FULL_ROUND_EVERY``-th). After each sweep the whole graph is propagated. Returns
     ``(status, applications, finished)``; ``finished`` is False when the deadline cut the
     sweeps short (the boxes are then propagated to the fixpoint all the same).
     """
@@ -423,7 +425,7 @@ def _polytope_rounds(
         if cut:
             return CONSISTENT, applications, False
         new_width = _total_width(lo, hi, targets)
-        if new_width > width * (1.0 - MIN_GAIN) and full:
+        if new_width > width * (1.0 - MIN_GAIN):
             break
         if expired(deadline) and round_index + 1 < MAX_LP_ROUNDS:
             return CONSISTENT, applications, False
