@@ -129,7 +129,7 @@ def test_the_generator_makes_every_kind_of_world() -> None:
     """Sensor kinds, priors, clusters, mixed naming and ambiguity all occur."""
     seen: Counter[str] = Counter()
 
-    @settings(max_examples=150, deadline=None, derandomize=True, suppress_health_check=HEALTH)
+    @settings(max_examples=400, deadline=None, derandomize=True, suppress_health_check=HEALTH)
     @given(worlds())
     def census(world: World) -> None:
         kind = world.notes[0].split("sensor ")[1].split(",")[0]

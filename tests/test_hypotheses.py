@@ -148,7 +148,7 @@ def test_strengthening_during_the_search_prunes_the_paper() -> None:
         log, consistency="lp", strengthen_limit=0, strengthen_during=6, local_frame=False
     )
     assert during.complete
-    assert len(during.hypotheses) < 0.9 * len(plain.hypotheses)
+    assert during.statistics["survivors"] < 0.9 * plain.statistics["survivors"]
     assert true_survivor(during, truth) == 0
     assert during.statistics["created"] < plain.statistics["created"]
 
@@ -208,7 +208,7 @@ def test_mixed_log_keeps_named_observations() -> None:
 
 def test_max_hypotheses_limits_the_report_not_the_search() -> None:
     log, _ = simulate_paper(seed=0, unknown=True)
-    everything = solve_unknown(log, consistency="hull", local_frame=False)
+    everything = solve_unknown(log, consistency="hull", max_hypotheses=1000, local_frame=False)
     solution = solve_unknown(log, consistency="hull", max_hypotheses=3, local_frame=False)
     assert solution.complete
     assert len(solution.hypotheses) == 3
@@ -228,7 +228,9 @@ def test_a_node_budget_stops_the_search_with_an_account() -> None:
     assert 0 < solution.statistics["explored_fraction"] < 1
     assert any("INCOMPLETE" in m and "unexplored" in m for m in solution.messages)
     seen: list[list[str]] = []
-    streamed = solve_unknown(log, consistency="hull", on_survivor=seen.append, local_frame=False)
+    streamed = solve_unknown(
+        log, consistency="hull", on_survivor=seen.append, local_frame=False, max_hypotheses=1000
+    )
     assert len(seen) == streamed.statistics["survivors"] == len(streamed.hypotheses)
     assert sorted(map(partition, seen)) == sorted(
         partition(h.assignment) for h in streamed.hypotheses

@@ -42,7 +42,7 @@ def test_a_product_of_ambiguities_is_found_and_a_dependence_is_kept_together() -
 
 def test_the_search_summarises_every_survivor_not_only_the_reported() -> None:
     log, _ = simulate_paper(seed=0, unknown=True)
-    every = solve_unknown(log, consistency="hull", local_frame=False)
+    every = solve_unknown(log, consistency="hull", local_frame=False, max_hypotheses=1000)
     few = solve_unknown(log, consistency="hull", local_frame=False, max_hypotheses=2)
     assert few.correspondence["follows"] == every.correspondence["follows"]
     assert few.correspondence["factors"] == every.correspondence["factors"]
