@@ -112,3 +112,25 @@ def test_region_bounds_landmarks_with_known_correspondence() -> None:
         assert -1.0 <= boxed.landmark(lid)[1, 0] and boxed.landmark(lid)[1, 1] <= 30.2
     tight = ClassPrior("door", x=(14.0, 15.5), y=(-0.5, 0.5))  # leaves L3 no room
     assert solve(_with(log, tight), consistency="hull", certify_limit=0).refuted
+
+
+def test_a_proven_hypothesis_meets_the_class_priors() -> None:
+    """A witness must satisfy the class priors too (an adversarial tester's find: a new
+    door 2e-16 from a known one was 'proven consistent' despite min_separation 2.9)."""
+    from fractions import Fraction
+    from pathlib import Path
+
+    from cuikslam.log.reader import read_log_file
+    from cuikslam.results.solution import PROVEN
+
+    path = Path(__file__).parent / "data" / "found" / "min-separation-proven-wrong.jsonl"
+    log = read_log_file(path)
+    separation = Fraction(log.class_priors["door"].min_separation)
+    proven = [h for h in solve(log, time_budget=5.0).hypotheses if h.status == PROVEN]
+    assert proven
+    for h in proven:
+        xy = [tuple(map(Fraction, p)) for p in h.witness["landmarks_xy"]]
+        for i in range(len(xy)):
+            for j in range(i):
+                gap2 = (xy[i][0] - xy[j][0]) ** 2 + (xy[i][1] - xy[j][1]) ** 2
+                assert gap2 >= separation**2, (h.assignment, xy)

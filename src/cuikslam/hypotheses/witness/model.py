@@ -331,6 +331,7 @@ class HypothesisModel(Starts):
 
         # ---- negative information
         self.sensor = log.sensor if use_sensor else None
+        self.class_priors = log.class_priors
         self.observed = np.zeros((n, m), dtype=bool)
         self.observed[self.obs_pose, self.obs_landmark] = True
         self._sensor_rows = np.arange(n * m)

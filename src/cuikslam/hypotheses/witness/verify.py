@@ -148,7 +148,31 @@ def _checks_hold(model: HypothesisModel, box: np.ndarray) -> bool:
     ok_ang = _inside_mod(values[ang], lo[ang], hi[ang])
     if not (np.all(ok_plain) and np.all(ok_ang)):
         return False
-    return _sensor_holds(model, P, L)
+    return _sensor_holds(model, P, L) and _class_priors_hold(model, L)
+
+
+def _class_priors_hold(model: HypothesisModel, L: np.ndarray) -> bool:
+    """The log's class priors (rigorous): at most ``at_most`` landmarks of a class, each
+    inside its region, any two at least ``min_separation`` apart."""
+    classes = np.array(model.landmark_classes, dtype=object)
+    for cls, prior in model.class_priors.items():
+        mine = np.flatnonzero(classes == cls)
+        if prior.at_most is not None and len(mine) > prior.at_most:
+            return False
+        if prior.x is not None and prior.y is not None and len(mine):
+            box = L[mine]
+            if np.any(box[:, 0, 0] < prior.x[0]) or np.any(box[:, 0, 1] > prior.x[1]):
+                return False
+            if np.any(box[:, 1, 0] < prior.y[0]) or np.any(box[:, 1, 1] > prior.y[1]):
+                return False
+        if prior.min_separation is not None and len(mine) > 1:
+            a, b = np.triu_indices(len(mine), k=1)
+            dx = ia.sub(L[mine[b], 0], L[mine[a], 0])
+            dy = ia.sub(L[mine[b], 1], L[mine[a], 1])
+            gap = ia.sqrt(ia.add(ia.sqr(dx), ia.sqr(dy)))
+            if np.any(gap[:, 0] < prior.min_separation):
+                return False
+    return True
 
 
 def _sensor_holds(model: HypothesisModel, P: np.ndarray, L: np.ndarray) -> bool:
