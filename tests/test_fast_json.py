@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import assume, given
+from hypothesis import given
 from hypothesis import strategies as st
 
 from cuikslam import _json
@@ -95,9 +95,15 @@ def test_same_verdict_with_and_without_orjson(decoder: str, line: str, fragment:
 finite = st.floats(allow_nan=False, allow_infinity=False)
 
 
-@given(a=finite, b=finite, c=finite, d=finite)
-def test_odometry_read_alike_with_and_without_orjson(a: float, b: float, c: float, d: float):
-    assume(a <= b and 0 <= c <= d)
+ordered = st.lists(finite, min_size=2, max_size=2).map(sorted)
+lengths = st.lists(st.floats(min_value=0.0, allow_infinity=False), min_size=2, max_size=2).map(
+    sorted
+)
+
+
+@given(turn=ordered, distance=lengths)
+def test_odometry_read_alike_with_and_without_orjson(turn: list[float], distance: list[float]):
+    (a, b), (c, d) = turn, distance
     line = json.dumps({"type": "odometry", "from": 0, "to": 1, "turn": [a, b], "distance": [c, d]})
     fast = parse_log_lines([PRIOR, line]).records[1]
     saved, _json.orjson = _json.orjson, None
