@@ -39,6 +39,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))  # for tests.reference
 
 from cuikslam.graph.kinematic_graph import KinematicGraph  # noqa: E402
+from cuikslam.interval.angles import angle_in  # noqa: E402
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, Status, propagate  # noqa: E402
 
 TURN_BOUND = 0.02
@@ -132,14 +133,15 @@ def loop_world(
 
 
 def _angle_inside(lo: np.ndarray, hi: np.ndarray, angle: np.ndarray) -> np.ndarray:
-    """Whether some representative angle + 2 pi k lies in [lo, hi] (boxes are periodic)."""
-    with np.errstate(invalid="ignore"):
-        shifted = lo + np.mod(angle - lo, 2.0 * math.pi)  # the first copy at or above lo
-        return (
-            (hi - lo >= 2.0 * math.pi)
-            | (shifted <= hi + TRUTH_SLACK)
-            | (shifted - 2.0 * math.pi >= lo - TRUTH_SLACK)
-        )
+    """Whether some representative angle + 2 pi k lies in [lo, hi] widened by ``TRUTH_SLACK``
+    (boxes are periodic)."""
+    return np.array(
+        [
+            angle_in(a - TRUTH_SLACK, b + TRUTH_SLACK, t)
+            for a, b, t in zip(lo, hi, angle, strict=True)
+        ],
+        dtype=bool,
+    )
 
 
 def truth_inside(world: LoopWorld, lo: np.ndarray, hi: np.ndarray) -> bool:

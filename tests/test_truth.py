@@ -18,8 +18,9 @@ import numpy as np
 import pytest
 
 from _exact import MP, TWO_PI, angle_inside, mpf
+from cuikslam.interval.angles import _pi_enclosure
 from cuikslam.log import LogFormatError
-from cuikslam.results.solution import Hypothesis, _pi_enclosure, check_truth
+from cuikslam.results.solution import Hypothesis, check_truth
 from cuikslam.simulate.truth import read_truth_file
 
 REPRO = Path(__file__).parent / "data" / "repro"

@@ -39,7 +39,8 @@ from cuikslam.graph.encoding import (
     YB,
 )
 from cuikslam.interval._periodic import periodic_meet
-from cuikslam.interval._rounding import PI_HI, TWO_PI_HI
+from cuikslam.interval._rounding import PI_HI
+from cuikslam.interval.angles import out_of_view_arc
 from cuikslam.log.errors import LogFormatError
 from cuikslam.log.records import (
     ClassPrior,
@@ -287,12 +288,8 @@ def _add_sensor_variables(problem: Problem, b: _Builder, log: Log) -> None:
             limit = float(np.nextafter(nearest.get(pose, math.inf) + sensor.nearest_margin, 0.0))
             radius = min(radius, limit)
         problem.radius_var[pose] = b.new((radius, radius))
-    half = sensor.fov / 2.0
-    if sensor.fov >= 2 * math.pi:
-        problem.arc_var = b.new((1.0, 0.0))  # empty: no bearing is out of view
-    else:
-        arc = (float(np.nextafter(half, 0.0)), float(np.nextafter(TWO_PI_HI - half, math.inf)))
-        problem.arc_var = b.new(arc)
+    arc = out_of_view_arc(sensor.fov)
+    problem.arc_var = b.new((1.0, 0.0) if arc is None else arc)  # empty: every bearing in view
 
 
 def observation_rows(problem: Problem, decision: Decision, landmark_xs: np.ndarray) -> np.ndarray:

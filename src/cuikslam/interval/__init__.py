@@ -2,19 +2,28 @@
 
 One kernel serves the whole library: the compiled scalar functions in ``_arith`` and
 ``_periodic`` are used by the narrowing operators, and the same functions, wrapped as
-generalized ufuncs, form the public array API below.
+generalized ufuncs, form the public array API of :mod:`cuikslam.interval.ops`, reachable
+from here. What the rest of the library asks of an angle in plain Python (enclosures of
+π, exact containment modulo 2π, a sensor's out-of-view arc) is :mod:`.angles`.
+
+Nothing compiled is loaded by importing this package: the array operations are loaded
+on first use, so :mod:`.angles` stays light.
 """
 
-from cuikslam.interval import ops as _ops
-from cuikslam.interval.ops import __all__, contains, interval, is_empty, width  # noqa: F401
+from __future__ import annotations
+
+import importlib
+from typing import Any
 
 
-def __getattr__(name: str):
+def __getattr__(name: str) -> Any:
     """An array operation of :mod:`cuikslam.interval.ops`, compiled on first use."""
-    if name in __all__:
-        return getattr(_ops, name)
+    ops = importlib.import_module("cuikslam.interval.ops")
+    if name == "__all__" or name in ops.__all__:
+        return getattr(ops, name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def __dir__() -> list[str]:
-    return sorted({*globals(), *__all__})
+    ops = importlib.import_module("cuikslam.interval.ops")
+    return sorted({*globals(), *ops.__all__})

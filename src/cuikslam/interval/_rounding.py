@@ -16,16 +16,17 @@ import math
 import numpy as np
 
 from cuikslam._jit import jit
+from cuikslam.interval.angles import (  # noqa: F401 (the enclosures of pi, for the kernels)
+    HALF_PI_HI,
+    HALF_PI_LO,
+    PI_HI,
+    PI_LO,
+    TWO_PI_HI,
+    TWO_PI_LO,
+)
 
 MAX = np.finfo(np.float64).max
 INF = np.inf
-
-PI_LO = math.pi  # the double nearest pi lies below pi
-PI_HI = float(np.nextafter(math.pi, math.inf))
-HALF_PI_LO = PI_LO / 2.0
-HALF_PI_HI = PI_HI / 2.0
-TWO_PI_LO = PI_LO * 2.0
-TWO_PI_HI = PI_HI * 2.0
 
 
 # One ulp of 1, and the smallest subnormal, written exactly (no arithmetic at import).

@@ -27,12 +27,11 @@ from __future__ import annotations
 import math
 from collections.abc import Collection
 from dataclasses import dataclass, field
-from fractions import Fraction
 from typing import Any
 
 import numpy as np
 
-from cuikslam.results.solution import Hypothesis, Solution, _angle_inside, _check_xy, _show
+from cuikslam.results.solution import Hypothesis, Solution, _check_pose, _check_xy
 from cuikslam.results.summary import _follows
 from cuikslam.simulate.truth import GroundTruth
 
@@ -168,9 +167,7 @@ def _pose_inside(pose_id: int, box: np.ndarray, value: tuple, misses: list[str])
     """Whether the exact true pose ``value`` lies in ``box`` (heading modulo 2π); each
     coordinate outside adds a line to ``misses``."""
     before = len(misses)
-    _check_xy(f"pose {pose_id}", box, value, misses)
-    if not _angle_inside(box[2], Fraction(value[2])):
-        misses.append(f"pose {pose_id} theta={_show(value[2])} not in {box[2].tolist()} (mod 2pi)")
+    _check_pose(pose_id, box, value, misses)
     return len(misses) == before
 
 

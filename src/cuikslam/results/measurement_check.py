@@ -16,6 +16,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from cuikslam.interval.angles import angle_excess
 from cuikslam.log.records import Log, Observation, Odometry, RelativePose
 from cuikslam.simulate.truth import GroundTruth
 
@@ -41,15 +42,6 @@ class Outside:
             f"{self.ranges} ranges and {self.bearings} bearings of {self.observations_checked} "
             f"observations, {self.moves} of {self.moves_checked} moves outside their intervals"
         )
-
-
-def _angle_excess(value: float, box: tuple[float, float]) -> float:
-    """How far the angle ``value`` (modulo 2π) lies outside ``box``; 0 inside."""
-    lo, hi = box
-    shifted = lo + (value - lo) % (2 * math.pi)
-    if shifted <= hi:
-        return 0.0
-    return min(shifted - hi, lo + 2 * math.pi - shifted)
 
 
 def _excess(value: float, box: tuple[float, float]) -> float:
@@ -90,7 +82,7 @@ def check_log(log: Log, truth: GroundTruth) -> Outside:
                         )
                 if record.bearing is not None:
                     bearing = math.atan2(q[1] - p[1], q[0] - p[0]) - p[2]
-                    if (e := _angle_excess(bearing, record.bearing)) > 0:
+                    if (e := angle_excess(bearing, *record.bearing)) > 0:
                         out.bearings += 1
                         bad = True
                         out.details.append(
@@ -120,7 +112,7 @@ def _move_misses(record: RelativePose | Odometry, a: list[float], b: list[float]
     if isinstance(record, Odometry):
         dist = math.hypot(b[0] - a[0], b[1] - a[1])
         values = [
-            ("turn", _angle_excess(b[2] - a[2], record.turn)),
+            ("turn", angle_excess(b[2] - a[2], *record.turn)),
             ("distance", _excess(dist, record.distance)),
         ]
     else:
@@ -129,7 +121,7 @@ def _move_misses(record: RelativePose | Odometry, a: list[float], b: list[float]
         values = [
             ("dx", _excess(c * dx + s * dy, record.dx)),
             ("dy", _excess(-s * dx + c * dy, record.dy)),
-            ("dtheta", _angle_excess(b[2] - a[2], record.dtheta)),
+            ("dtheta", angle_excess(b[2] - a[2], *record.dtheta)),
         ]
     return [f"{name} by {e:.3g}" for name, e in values if e > 0]
 

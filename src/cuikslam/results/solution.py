@@ -15,6 +15,8 @@ from fractions import Fraction
 
 import numpy as np
 
+from cuikslam.interval.angles import angle_in
+
 __all__ = ["NOT_REFUTED", "PROVEN", "Hypothesis", "Solution", "TruthReport", "check_truth"]
 
 PROVEN = "proven consistent"
@@ -106,32 +108,6 @@ ExactLike = float | int | Fraction | Decimal | str
 """A true value: a float, an exact rational, or a decimal string (all compared exactly)."""
 
 
-def _pi_enclosure(digits: int = 420) -> tuple[Fraction, Fraction]:
-    """Rationals ``lo < π < hi`` less than ``10**(10 - digits)`` apart (Machin's formula).
-
-    Fixed point with ``digits + 10`` decimals: each truncated term errs by at most one unit,
-    and fewer than ``digits`` terms are summed, so the sum errs by far less than 10**6 units.
-    """
-    unit = 10 ** (digits + 10)
-
-    def arctan_inverse(x: int) -> int:
-        total = term = unit // x
-        n, sign = 1, 1
-        while term:
-            term //= x * x
-            n += 2
-            sign = -sign
-            total += sign * (term // n)
-        return total
-
-    approx = 4 * (4 * arctan_inverse(5) - arctan_inverse(239))
-    return Fraction(approx - 10**6, unit), Fraction(approx + 10**6, unit)
-
-
-_PI_LO, _PI_HI = _pi_enclosure()
-_TWO_PI_LO, _TWO_PI_HI = 2 * _PI_LO, 2 * _PI_HI
-
-
 def _exact(value: object) -> Fraction:
     """``value`` as an exact rational: a float exactly, a decimal string or Decimal exactly."""
     if isinstance(value, Fraction):
@@ -159,31 +135,6 @@ def _show(value: object) -> str:
     return f"{digits} (decimal)"
 
 
-def _angle_inside(box: np.ndarray, angle: Fraction) -> bool:
-    """Whether ``angle + 2πk`` lies in the float interval ``box`` for some integer k, exactly.
-
-    2π is known between two rationals 1e-409 apart; a k for which that enclosure does not
-    decide containment would need ``angle + 2πk`` within 1e-400 of a float bound, which
-    for k != 0 (2πk irrational) no float-sized truth comes near.
-    """
-    if not float(box[0]) <= float(box[1]):
-        return False
-    if math.isinf(float(box[0])) or math.isinf(float(box[1])):
-        return True  # unbounded: holds every angle
-    lo, hi = _exact(float(box[0])), _exact(float(box[1]))
-    if hi - lo >= _TWO_PI_HI:
-        return True
-    # the least k with angle + 2πk >= lo lies between these two (2π in [LO, HI])
-    ks = sorted({math.ceil((lo - angle) / _TWO_PI_LO), math.ceil((lo - angle) / _TWO_PI_HI)})
-    for k in range(ks[0] - 1, ks[-1] + 1):
-        low, high = angle + k * _TWO_PI_LO, angle + k * _TWO_PI_HI
-        if k < 0:
-            low, high = high, low
-        if lo <= low and high <= hi:
-            return True
-    return False
-
-
 def check_truth(
     hypothesis: Hypothesis,
     pose_ids: list[int],
@@ -205,12 +156,7 @@ def check_truth(
     for pose_id, truth in zip(pose_ids, poses_xyt, strict=True):
         if pose_id not in row_of:
             continue
-        box = hypothesis.poses[row_of[pose_id]]
-        checked += _check_xy(f"pose {pose_id}", box, truth, misses) + 1
-        if not (_float_inside(box[2], truth[2]) or _angle_inside(box[2], _exact(truth[2]))):
-            misses.append(
-                f"pose {pose_id} theta={_show(truth[2])} not in {box[2].tolist()} (mod 2pi)"
-            )
+        checked += _check_pose(pose_id, hypothesis.poses[row_of[pose_id]], truth, misses)
     for landmark_id, xy in (landmark_xy or {}).items():
         if landmark_id not in hypothesis.landmark_ids:
             continue
@@ -238,6 +184,15 @@ def _float_inside(bounds: np.ndarray, value: object) -> bool:
     if type(value) not in (float, Fraction):
         return False
     return float(bounds[0]) <= value <= float(bounds[1])
+
+
+def _check_pose(pose_id: int, box: np.ndarray, xyt: Sequence[ExactLike], misses: list[str]) -> int:
+    """Append a line to ``misses`` for each of x, y, theta (modulo 2π) outside the pose box
+    ``box``; return 3 (bounds checked)."""
+    _check_xy(f"pose {pose_id}", box, xyt, misses)
+    if not (_float_inside(box[2], xyt[2]) or angle_in(*box[2], _exact(xyt[2]))):
+        misses.append(f"pose {pose_id} theta={_show(xyt[2])} not in {box[2].tolist()} (mod 2pi)")
+    return 3
 
 
 def _check_xy(label: str, box: np.ndarray, xy: Sequence[ExactLike], misses: list[str]) -> int:
