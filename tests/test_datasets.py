@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import scipy.io
 
+from _exact import angle_inside, mpf
 from cuikslam.cli.main import main
 from cuikslam.datasets import data_dir, read_lost_in_the_woods
 from cuikslam.graph.kinematic_graph import KinematicGraph
@@ -36,8 +37,8 @@ def _dataset() -> Path:
 
 def _inside(value: float, bounds: tuple[float, float], *, angle: bool = False) -> bool:
     lo, hi = bounds
-    if angle:  # shift value by 2π k next to the interval
-        value = lo + (value - lo) % (2 * math.pi)
+    if angle:
+        return angle_inside(lo, hi, mpf(value))
     return lo <= value <= hi
 
 

@@ -20,6 +20,7 @@ import pytest
 from hypothesis import event, example, given, settings
 from hypothesis import strategies as st
 
+from _exact import angle_inside
 from cuikslam._fpu import ensure_round_to_nearest, rounds_to_nearest
 from cuikslam.narrowing._polar import polar_contract
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL
@@ -69,15 +70,6 @@ def enclose(v: mpmath.mpf) -> tuple[float, float]:
 
 def contains(lo: float, hi: float, v: mpmath.mpf) -> bool:
     return lo <= hi and mpf(lo) <= v <= mpf(hi)
-
-
-def contains_angle(lo: float, hi: float, v: mpmath.mpf) -> bool:
-    if not lo <= hi:
-        return False
-    if hi - lo >= 7.0:
-        return True
-    k = MP.ceil((mpf(lo) - v) / TWO_PI)
-    return v + k * TWO_PI <= mpf(hi)
 
 
 # ---------------------------------------------------------------- (a) soundness
@@ -145,7 +137,7 @@ def test_polar_contract_keeps_the_truth(rho, phi, k, m, mp, setting):
     assert contains(out[2], out[3], y), (box, out)
     assert contains(out[4], out[5], r), (box, out)
     # the representative t + 2πk was in the finite phi box: it must stay (mod 2π at least)
-    assert contains_angle(out[6], out[7], t), (box, out)
+    assert angle_inside(out[6], out[7], t), (box, out)
     assert contains(out[6], out[7], t + k * TWO_PI), (box, out)
     # contractance
     for i in range(0, 8, 2):

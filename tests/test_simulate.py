@@ -12,6 +12,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from _exact import angle_inside, mpf
 from cuikslam.log.errors import LogFormatError
 from cuikslam.log.reader import parse_log_lines
 from cuikslam.log.records import Bounds, Log
@@ -48,10 +49,9 @@ def contains(bounds: Bounds, value: float) -> bool:
 
 
 def contains_angle(bounds: Bounds, angle: float) -> bool:
-    """Whether ``angle + 2πk`` lies in ``bounds`` for some integer ``k``."""
+    """Whether ``angle + 2πk`` lies in ``bounds`` (widened by TOL) for some integer ``k``."""
     lo, hi = bounds
-    k = math.ceil((lo - TOL - angle) / (2 * math.pi))
-    return lo <= hi and angle + 2 * math.pi * k <= hi + TOL
+    return lo <= hi and angle_inside(lo - TOL, hi + TOL, mpf(angle))
 
 
 def assert_log_contains_truth(log: Log, truth: GroundTruth) -> None:

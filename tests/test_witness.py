@@ -12,6 +12,7 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
+from _exact import angle_inside
 from cuikslam.hypotheses.witness import (
     HypothesisModel,
     certify,
@@ -199,14 +200,6 @@ SLACKS = [-1e-3, -1e-9, -1e-13, -1e-15, -1e-16, 0.0, 1e-16, 1e-15, 1e-13, 1e-9, 
 """How far outside (< 0) or inside (> 0) the truth each generated bound lies."""
 
 
-def _mp_angle_in(angle, lo: float, hi: float) -> bool:
-    two_pi = 2 * mpmath.pi
-    if mpmath.mpf(hi) - mpmath.mpf(lo) >= two_pi:
-        return True
-    k = mpmath.ceil((mpmath.mpf(lo) - angle) / two_pi)
-    return bool(angle + k * two_pi <= hi)
-
-
 def mp_consistent(log: Log, assignment: list[str], params: np.ndarray) -> bool:
     """Every measured interval and the sensor model hold, at 60 digits, for a chain log
     whose parameters are [x0, y0, theta0, (turn, distance) per odometry, landmarks]."""
@@ -240,7 +233,7 @@ def mp_consistent(log: Log, assignment: list[str], params: np.ndarray) -> bool:
         r, b = polar(obs.pose, lid)
         if obs.range is not None and not obs.range[0] <= r <= obs.range[1]:
             return False
-        if obs.bearing is not None and not _mp_angle_in(b, *obs.bearing):
+        if obs.bearing is not None and not angle_inside(*obs.bearing, b):
             return False
     sensor = log.sensor
     if sensor is None:
@@ -253,7 +246,7 @@ def mp_consistent(log: Log, assignment: list[str], params: np.ndarray) -> bool:
             lid
             for lid, (r, b) in polars.items()
             if r <= sensor.max_range
-            and (sensor.fov >= 2 * math.pi or _mp_angle_in(b, -sensor.fov / 2, sensor.fov / 2))
+            and (sensor.fov >= 2 * math.pi or angle_inside(-sensor.fov / 2, sensor.fov / 2, b))
         }
         if sensor.nearest_margin is not None and visible:
             nearest = min(polars[lid][0] for lid in visible)
