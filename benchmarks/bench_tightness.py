@@ -35,6 +35,7 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
+import dataclasses  # noqa: E402
 import hashlib  # noqa: E402
 import inspect  # noqa: E402
 import json  # noqa: E402
@@ -73,7 +74,13 @@ def log_fingerprint(log: Log) -> str:
 def solve_kwargs(consistency: str | None) -> dict[str, Any]:
     """``{"consistency": level}`` when asked for and :func:`solve` takes it, else ``{}``;
     plus ``time_budget=None`` (the full level is measured, not what a budget allows)."""
-    parameters = inspect.signature(solve).parameters
+    parameters = set(inspect.signature(solve).parameters)
+    try:  # the options are fields of SolveOptions since it exists
+        from cuikslam.options import SolveOptions
+
+        parameters |= {f.name for f in dataclasses.fields(SolveOptions)}
+    except ImportError:
+        pass
     kwargs: dict[str, Any] = {"time_budget": None} if "time_budget" in parameters else {}
     if consistency is None:
         return kwargs

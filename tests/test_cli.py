@@ -640,9 +640,31 @@ def test_solve_streams_every_survivor_to_a_file(tmp_path: Path) -> None:
 
 
 def test_cli_defaults_match_the_library() -> None:
-    """The CLI does not import the search at start-up; its default must not drift."""
+    """The CLI builds its solve options from SolveOptions; the search takes its defaults
+    from it too."""
+    import dataclasses
+
     from cuikslam.cli.main import build_parser
     from cuikslam.hypotheses.search import DEFAULT_MAX_HYPOTHESES
+    from cuikslam.options import Level, SolveOptions
 
-    args = build_parser().parse_args(["solve", "trip.jsonl"])
-    assert args.max_hypotheses == DEFAULT_MAX_HYPOTHESES
+    parser = build_parser()
+    args = parser.parse_args(["solve", "trip.jsonl"])
+    defaults = SolveOptions()
+    assert args.max_hypotheses == DEFAULT_MAX_HYPOTHESES == defaults.max_hypotheses
+    for name in ("consistency", "strengthen_limit", "strengthen_during"):
+        assert getattr(args, name) == getattr(defaults, name), name
+    names = {f.name for f in dataclasses.fields(SolveOptions)}
+    assert {"consistency", "max_hypotheses", "time_budget"} <= names
+    for level in Level:
+        parsed = parser.parse_args(["solve", "trip.jsonl", "--consistency", level.value])
+        assert SolveOptions(consistency=parsed.consistency).consistency is level
+
+
+def test_an_unknown_level_is_refused_with_the_choices() -> None:
+    from cuikslam.options import SolveOptions
+
+    with pytest.raises(ValueError, match="unknown consistency level 'box'; choose one of auto"):
+        SolveOptions(consistency="box")
+    with pytest.raises(TypeError):
+        SolveOptions().replace(no_such_option=1)

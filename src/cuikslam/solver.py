@@ -9,29 +9,20 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.budget import DEFAULT_TIME_BUDGET, STRENGTHEN_SHARE, deadline_after, portion
+from cuikslam.budget import STRENGTHEN_SHARE, deadline_after, portion
 from cuikslam.graph.kinematic_graph import KinematicGraph
-from cuikslam.hypotheses.search import (
-    DEFAULT_MAX_HYPOTHESES,
-    DEFAULT_STRENGTHEN_DURING,
-    DEFAULT_STRENGTHEN_LIMIT,
-    solve_unknown,
-)
+from cuikslam.hypotheses.search import solve_unknown
 from cuikslam.hypotheses.witness import certify
 from cuikslam.log.records import Log
 from cuikslam.narrowing._propagate import INCONSISTENT
-from cuikslam.narrowing.consistency import (
-    DEFAULT_LEVEL,
-    Arrays,
-    StrengthenReport,
-    resolve_level,
-    strengthen,
-)
-from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, Status, propagate
+from cuikslam.narrowing.consistency import Arrays, StrengthenReport, resolve_level, strengthen
+from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Status, propagate
+from cuikslam.options import SolveOptions
 from cuikslam.results.solution import Hypothesis, Solution
 
 __all__ = ["budget_message", "hypothesis_from_graph", "solve"]
@@ -39,9 +30,6 @@ __all__ = ["budget_message", "hypothesis_from_graph", "solve"]
 ProgressCallback = Callable[[int, int], None]
 """Called with (done, total) as a long solve advances."""
 
-DEFAULT_CERTIFY_LIMIT: int | None = None
-"""Best-ranked hypotheses that get a witness search (None: every reported one; they share
-the time left round-robin)."""
 CERTIFY_MAX_POSES = 50
 """No witness search beyond this many poses (it grows to tens of seconds at 100 poses)."""
 SEARCH_SHARE = 0.8
@@ -106,16 +94,11 @@ def warm_up(unknown: bool = True) -> float:
 
 def solve(
     log: Log,
+    options: SolveOptions | None = None,
     *,
-    consistency: str = DEFAULT_LEVEL,
-    max_hypotheses: int = DEFAULT_MAX_HYPOTHESES,
-    strengthen_limit: int = DEFAULT_STRENGTHEN_LIMIT,
-    strengthen_during: int = DEFAULT_STRENGTHEN_DURING,
-    certify_limit: int | None = DEFAULT_CERTIFY_LIMIT,
-    rtol: float = DEFAULT_RTOL,
     progress: ProgressCallback | None = None,
-    time_budget: float | None = DEFAULT_TIME_BUDGET,
     on_survivor: Callable[[list[str]], None] | None = None,
+    **overrides: Any,
 ) -> Solution:
     """Solve ``log`` and return every hypothesis that narrowing could not refute.
 
@@ -124,8 +107,34 @@ def solve(
     landmark, the correspondence search of :func:`cuikslam.hypotheses.solve_unknown` runs.
     The ``certify_limit`` best-ranked hypotheses (all reported ones by default) are then
     certified: a solution point is searched and verified in interval arithmetic, making
-    them *proven consistent*.
+    them *proven consistent* (the witness search, a dense problem, is skipped beyond
+    ``CERTIFY_MAX_POSES`` poses).
 
+    Parameters
+    ----------
+    log : Log
+        The log (see :func:`cuikslam.log.read_log_file`).
+    options : SolveOptions, optional
+        The options (defaults: ``SolveOptions()``).
+    progress : callable, optional
+        Called with (done, total) as a long solve advances.
+    on_survivor : callable, optional
+        With unknown correspondence, called with the assignment of every survivor of the
+        search as it is found (see :func:`~cuikslam.hypotheses.solve_unknown`): all of
+        them, however many are reported.
+    **overrides
+        Fields of :class:`~cuikslam.options.SolveOptions` (``consistency``,
+        ``max_hypotheses``, ``strengthen_limit``, ``strengthen_during``,
+        ``certify_limit``, ``rtol``, ``time_budget``) replacing those of ``options``.
+
+    Returns
+    -------
+    Solution
+        The surviving hypotheses, best-ranked first, with statistics, timings and
+        messages.
+
+    Notes
+    -----
     ``time_budget`` (seconds, None for no limit) bounds the whole solve. With known
     correspondence the fixpoint of the factors always runs to the end (it takes
     milliseconds); the stronger level may use ``STRENGTHEN_SHARE`` of the time left, and
@@ -135,31 +144,29 @@ def solve(
     :mod:`cuikslam.narrowing.consistency`) in ``Solution.consistency`` and each
     hypothesis' ``consistency``, a hypothesis left ``not refuted`` rather than proven, an
     incomplete search, each with a message in ``Solution.messages``.
-
-    ``on_survivor``, with unknown correspondence, is called with the assignment of every
-    survivor of the search as it is found (see
-    :func:`~cuikslam.hypotheses.solve_unknown`): all of them, however many are reported.
     """
+    options = (options or SolveOptions()).replace(**overrides)
     ensure_round_to_nearest()
     warm_up_s = warm_up(log.has_unknown_correspondence)
     start = time.perf_counter()
-    deadline = deadline_after(time_budget)
+    deadline = deadline_after(options.time_budget)
     n_poses = len(log.pose_ids)
-    consistency = resolve_level(consistency, n_poses)
+    consistency = resolve_level(options.consistency.value, n_poses)
     if log.has_unknown_correspondence:
         solution = solve_unknown(
             log,
             consistency=consistency,
-            max_hypotheses=max_hypotheses,
-            strengthen_limit=strengthen_limit,
-            strengthen_during=strengthen_during,
-            rtol=rtol,
+            max_hypotheses=options.max_hypotheses,
+            strengthen_limit=options.strengthen_limit,
+            strengthen_during=options.strengthen_during,
+            rtol=options.rtol,
             progress=progress,
             deadline=portion(deadline, SEARCH_SHARE),
             on_survivor=on_survivor,
         )
     else:
-        solution = _solve_known(log, consistency, rtol, progress, deadline)
+        solution = _solve_known(log, consistency, options.rtol, progress, deadline)
+    certify_limit = options.certify_limit
     if n_poses > CERTIFY_MAX_POSES:
         certify_limit = 0  # the witness search is a dense least-squares problem
     certify_start = time.perf_counter()
@@ -169,8 +176,8 @@ def solve(
     solution.timings["certify_s"] = time.perf_counter() - certify_start
     solution.timings["total_s"] = time.perf_counter() - start
     solution.timings["warm_up_s"] = warm_up_s
-    if time_budget is not None:
-        solution.timings["time_budget_s"] = float(time_budget)
+    if options.time_budget is not None:
+        solution.timings["time_budget_s"] = float(options.time_budget)
     return solution
 
 

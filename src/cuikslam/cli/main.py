@@ -30,6 +30,7 @@ from cuikslam.cli._common import (
     write_output,
 )
 from cuikslam.log.errors import LogFormatError
+from cuikslam.options import Level, SolveOptions
 
 if TYPE_CHECKING:
     from rich.console import Console
@@ -92,10 +93,12 @@ def _cmd_solve(args: argparse.Namespace) -> int:
         quiet=args.quiet,
         console=_console(),
         table=args.table,
-        consistency=args.consistency,
-        max_hypotheses=args.max_hypotheses,
-        strengthen_limit=args.strengthen_limit,
-        strengthen_during=args.strengthen_during,
+        options=SolveOptions(
+            consistency=args.consistency,
+            max_hypotheses=args.max_hypotheses,
+            strengthen_limit=args.strengthen_limit,
+            strengthen_during=args.strengthen_during,
+        ),
         time_budget=args.time_budget,
         started=STARTED,
         survivors_path=args.survivors,
@@ -240,8 +243,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
 def _add_solver_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--consistency",
-        choices=["auto", "hull", "lp", "lp-split"],
-        default="auto",
+        choices=[level.value for level in Level],
+        default=SolveOptions.consistency.value,
         help="how hard to narrow: 'hull' = fixpoint of the narrowing operators (fastest); "
         "'lp' = plus rounds of the rigorous polytope-hull operator (much tighter); "
         "'lp-split' = plus bisection of the widest headings (about 3x the time of 'lp'); "
@@ -257,7 +260,7 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--max-hypotheses",
         type=_positive_int,
-        default=100,  # hypotheses.search.DEFAULT_MAX_HYPOTHESES (not imported: start-up time)
+        default=SolveOptions.max_hypotheses,
         help="surviving correspondence hypotheses reported in detail (the best-ranked); the "
         "search explores and counts all of them, and --survivors writes all of them "
         "(default %(default)s)",
@@ -265,14 +268,14 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--strengthen-limit",
         type=_positive_int,
-        default=100,
+        default=SolveOptions.strengthen_limit,
         help="apply the --consistency level to every surviving hypothesis when at most this "
         "many survive, else to the best-ranked one only (default %(default)s)",
     )
     p.add_argument(
         "--strengthen-during",
         type=_non_negative_int,
-        default=0,
+        default=SolveOptions.strengthen_during,
         help="also apply level lp after every ambiguous observation while at most this many "
         "hypotheses live: fewer survivors, slower (default %(default)s: off)",
     )

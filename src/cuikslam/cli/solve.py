@@ -14,6 +14,7 @@ from cuikslam.budget import command_budget
 from cuikslam.cli._common import CommandError, check_output_path, progress_bar, write_output
 from cuikslam.log.reader import read_log_file
 from cuikslam.log.records import Log
+from cuikslam.options import SolveOptions
 from cuikslam.results.io import write_result_csv, write_result_file
 from cuikslam.results.overview import overview_lines
 from cuikslam.results.solution import Solution, check_truth
@@ -201,10 +202,7 @@ def run_solve(
     quiet: bool,
     console: Console,
     table: bool | None = None,
-    consistency: str = "auto",
-    max_hypotheses: int = 100,
-    strengthen_limit: int = 100,
-    strengthen_during: int = 0,
+    options: SolveOptions | None = None,
     time_budget: float | str | None = "auto",
     started: float | None = None,
     survivors_path: str | None = None,
@@ -228,10 +226,7 @@ def run_solve(
     ):
         solution = solve(
             log,
-            consistency=consistency,
-            max_hypotheses=max_hypotheses,
-            strengthen_limit=strengthen_limit,
-            strengthen_during=strengthen_during,
+            options,
             progress=progress,
             time_budget=time_budget,
             on_survivor=on_survivor,

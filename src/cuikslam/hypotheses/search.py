@@ -43,6 +43,7 @@ from cuikslam.narrowing.consistency import (
     strengthen,
 )
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL
+from cuikslam.options import SolveOptions
 from cuikslam.results.solution import Hypothesis, Solution
 from cuikslam.results.summary import describe, summarize, summary_to_json
 
@@ -54,13 +55,13 @@ __all__ = [
     "solve_unknown",
 ]
 
-DEFAULT_MAX_HYPOTHESES = 100
+DEFAULT_MAX_HYPOTHESES = SolveOptions.max_hypotheses
 """Survivors reported in detail at most (the best-ranked); the search itself explores all."""
-DEFAULT_STRENGTHEN_LIMIT = 100
+DEFAULT_STRENGTHEN_LIMIT = SolveOptions.strengthen_limit
 """Survivors narrowed to the stronger consistency level at most (else the best-ranked)."""
 BEST_ATTEMPTS = 10
 """Beyond ``strengthen_limit`` survivors, the best-ranked are tried until one is not refuted."""
-DEFAULT_STRENGTHEN_DURING = 0
+DEFAULT_STRENGTHEN_DURING = SolveOptions.strengthen_during
 """Decisions (the first ones) whose children get ``lp`` during the search when ambiguous."""
 MAINTAIN_EVERY = 1024
 """Node expansions between two looks at the shared graph's housekeeping."""

@@ -15,10 +15,11 @@ from cuikslam.narrowing._propagate import (
     INCONSISTENT,
     propagate_arrays,
 )
+from cuikslam.options import SolveOptions
 
 __all__ = ["DEFAULT_RTOL", "Propagation", "Status", "propagate"]
 
-DEFAULT_RTOL = 1e-3
+DEFAULT_RTOL = SolveOptions.rtol
 """A variable that shrinks by less than this fraction of its width wakes nobody."""
 DEFAULT_ROUNDS = 1
 """Repetitions of a factor's sub-operators per application (its local fixpoint)."""

@@ -1,0 +1,94 @@
+"""What a solve may be asked: the consistency levels and every option with its default.
+
+The one source of the solve options: :func:`cuikslam.solver.solve` takes a
+:class:`SolveOptions` (or its fields as keywords), the search
+(:func:`cuikslam.hypotheses.solve_unknown`) takes its defaults from it, and the command
+line builds its choices and defaults from it. Importing this module loads nothing
+compiled, so ``cuikslam --help`` stays fast.
+
+Examples
+--------
+>>> options = SolveOptions(consistency="hull")
+>>> options.consistency is Level.HULL, options.max_hypotheses
+(True, 100)
+>>> options.replace(max_hypotheses=5).max_hypotheses
+5
+>>> [str(level) for level in Level]
+['auto', 'hull', 'lp', 'lp-split']
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+from dataclasses import dataclass
+from typing import Any
+
+from cuikslam.budget import DEFAULT_TIME_BUDGET
+
+__all__ = ["Level", "SolveOptions"]
+
+
+class Level(enum.StrEnum):
+    """How hard the boxes are narrowed (a string: ``Level.LP == "lp"``)."""
+
+    AUTO = "auto"
+    """``lp``, whatever the length of the log."""
+    HULL = "hull"
+    """The fixpoint of the narrowing operators (fastest)."""
+    LP = "lp"
+    """``hull``, then rounds of the rigorous polytope-hull operator (much tighter)."""
+    LP_SPLIT = "lp-split"
+    """``lp``, then the widest headings bisected (about 3x the time of ``lp``)."""
+
+    @classmethod
+    def parse(cls, value: str) -> Level:
+        """The level named ``value``; ValueError naming the choices otherwise."""
+        try:
+            return cls(value)
+        except ValueError:
+            choices = ", ".join(level.value for level in cls)
+            raise ValueError(
+                f"unknown consistency level {value!r}; choose one of {choices}"
+            ) from None
+
+
+@dataclass(frozen=True)
+class SolveOptions:
+    """The options of a solve, each with its default.
+
+    Attributes
+    ----------
+    consistency : Level
+        The level applied to the boxes (a level's name is accepted too).
+    max_hypotheses : int
+        Survivors of the correspondence search reported in detail (the best-ranked); the
+        search explores and counts all of them.
+    strengthen_limit : int
+        The level is applied to every survivor when at most this many, else to the
+        best-ranked one.
+    strengthen_during : int
+        The children of the first ``strengthen_during`` decisions of the search get level
+        ``lp`` when the decision is ambiguous (0: off).
+    certify_limit : int or None
+        Best-ranked hypotheses that get a witness search (None: every reported one).
+    rtol : float
+        Relative shrink below which propagation stops requeueing an operator.
+    time_budget : float or None
+        Seconds the whole solve may take (None: no limit).
+    """
+
+    consistency: Level = Level.AUTO
+    max_hypotheses: int = 100
+    strengthen_limit: int = 100
+    strengthen_during: int = 0
+    certify_limit: int | None = None
+    rtol: float = 1e-3
+    time_budget: float | None = DEFAULT_TIME_BUDGET
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "consistency", Level.parse(self.consistency))
+
+    def replace(self, **changes: Any) -> SolveOptions:
+        """A copy with ``changes`` (TypeError on a name that is not an option)."""
+        return dataclasses.replace(self, **changes)
