@@ -56,6 +56,7 @@ def _run_world(
 ) -> None:  # fmt: skip
     from cuikslam.hypotheses import solve_unknown
     from cuikslam.hypotheses.witness import certify
+    from cuikslam.results.association import rank_of
     from cuikslam.simulate import simulate_random_world
 
     log, truth = simulate_random_world(
@@ -74,14 +75,7 @@ def _run_world(
         certify(log, solution, deadline=decide_start + decide)
     decide_s = time.perf_counter() - decide_start
     stats = solution.statistics
-    first: dict[str, int] = {}
-    true_partition = [first.setdefault(a, len(first)) for a in truth.assignment]
-    found = False
-    for h in solution.hypotheses:
-        mine: dict[str, int] = {}
-        if [mine.setdefault(a, len(mine)) for a in h.assignment] == true_partition:
-            found = True
-            break
+    found = rank_of(solution.hypotheses, truth.assignment) is not None
     queue.put(
         {
             "poses": n_poses,

@@ -29,20 +29,16 @@ from typing import Any
 
 from cuikslam._atomic import atomic_write_text
 from cuikslam.log.records import Log
+from cuikslam.results.association import partition
 from cuikslam.simulate import simulate_paper, simulate_random_world
 from cuikslam.solver import solve
 
 STRENGTHEN_ALL = 1_000_000
 
 
-def _partition(assignment: list[str]) -> list[int]:
-    first: dict[str, int] = {}
-    return [first.setdefault(a, len(first)) for a in assignment]
-
-
 def measure(name: str, log: Log, true_assignment: list[str], max_hypotheses: int) -> dict[str, Any]:
     """Survivors and times at levels hull and lp (lp applied to every survivor)."""
-    truth = _partition(true_assignment)
+    truth = partition(true_assignment)
     row: dict[str, Any] = {"world": name, "observations": len(log.observations)}
     for level in ("hull", "lp"):
         start = time.perf_counter()
@@ -57,7 +53,7 @@ def measure(name: str, log: Log, true_assignment: list[str], max_hypotheses: int
         row[f"{level}_survivors"] = len(solution.hypotheses)
         row[f"{level}_complete"] = solution.complete
         row[f"{level}_true_kept"] = any(
-            _partition(h.assignment) == truth for h in solution.hypotheses
+            partition(h.assignment) == truth for h in solution.hypotheses
         )
     row["pruned_by_lp"] = row["hull_survivors"] - row["lp_survivors"]
     return row

@@ -29,6 +29,7 @@ from hypothesis import strategies as st
 from _exact import angle_inside
 from cuikslam.log import Log, parse_log_lines
 from cuikslam.narrowing.consistency import BUDGET_SUFFIX, LEVELS
+from cuikslam.results.association import partition
 from cuikslam.results.io import solution_to_json
 from cuikslam.results.solution import NOT_REFUTED, PROVEN, Hypothesis, Solution
 from cuikslam.solver import solve
@@ -182,13 +183,6 @@ def odd_worlds(draw: st.DrawFn, known: bool | None = None) -> OddWorld:
 # --- checks --------------------------------------------------------------------------------
 
 
-def _partition(assignment: list[str], named: set[str]) -> list[str]:
-    """Landmark ids the log names (priors, labels) as they are; the others renumbered by
-    first appearance: equal for equal hypotheses."""
-    first: dict[str, str] = {}
-    return [a if a in named else first.setdefault(a, f"#{len(first)}") for a in assignment]
-
-
 def _misses(h: Hypothesis, world: OddWorld) -> list[str]:
     """Boxes of ``h`` (the true hypothesis) that miss the exact truth."""
     misses = []
@@ -233,8 +227,8 @@ def assert_truth_kept(solution: Solution, world: OddWorld) -> None:
     named = {p.landmark for p in log.landmark_priors} | {
         str(o.landmark) for o in log.observations if o.landmark is not None
     }
-    truth = _partition(world.observation_landmark, named)
-    found = [h for h in solution.hypotheses if _partition(h.assignment, named) == truth]
+    truth = partition(world.observation_landmark, named)
+    found = [h for h in solution.hypotheses if partition(h.assignment, named) == truth]
     if not found:
         assert not solution.complete, "the true partition was discarded"
         return

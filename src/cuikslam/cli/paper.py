@@ -9,19 +9,26 @@ from rich.table import Table
 
 from cuikslam.budget import DEFAULT_TIME_BUDGET
 from cuikslam.cli._common import check_figure_path, check_output_path, write_output
+from cuikslam.results.association import truth_verdict
 from cuikslam.results.io import write_result_file
-from cuikslam.results.solution import PROVEN
+from cuikslam.results.solution import PROVEN, Solution
 from cuikslam.results.table import comparison_table, hypothesis_rows, hypothesis_table
 from cuikslam.simulate.paper import PAPER_SURVIVORS, paper_table1, simulate_paper
+from cuikslam.simulate.truth import GroundTruth
 from cuikslam.solver import solve
 
 __all__ = ["run_paper"]
 
 
+def _report_truth(solution: Solution, truth: GroundTruth, console: Console) -> bool:
+    verdict = truth_verdict(solution, truth)
+    for line in verdict.lines:
+        console.print(line)
+    return verdict.ok
+
+
 def _unknown_correspondence(seed: int, console: Console, time_budget: float | None) -> bool:
     """The same experiment without landmark ids: the seed's Tables 2-6 question."""
-    from cuikslam.cli.solve import report_truth
-
     log, truth = simulate_paper(seed=seed, unknown=True)
     solution = solve(log, time_budget=time_budget)
     stats = solution.statistics
@@ -77,7 +84,7 @@ def _unknown_correspondence(seed: int, console: Console, time_budget: float | No
         )
     for message in solution.messages:
         console.print(message)
-    return report_truth(solution, truth, console)
+    return _report_truth(solution, truth, console)
 
 
 def run_paper(
@@ -92,8 +99,6 @@ def run_paper(
 
     ``time_budget`` (seconds, None for no limit) bounds each of the two solves; deciding
     every survivor of the unknown-correspondence part can take tens of seconds."""
-    from cuikslam.cli.solve import report_truth
-
     if json_path:
         check_output_path(json_path)
     if figure:
@@ -124,7 +129,7 @@ def run_paper(
             "(the paper's θ is measured from +y; widths compare)",
         )
     )
-    ok = report_truth(solution, truth, console)
+    ok = _report_truth(solution, truth, console)
     ok &= _unknown_correspondence(seed, console, time_budget)
     if json_path:
         write_output(json_path, lambda: write_result_file(solution, json_path))

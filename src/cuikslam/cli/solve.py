@@ -13,12 +13,11 @@ from cuikslam._atomic import atomic_open
 from cuikslam.budget import command_budget
 from cuikslam.cli._common import CommandError, check_output_path, progress_bar, write_output
 from cuikslam.log.reader import read_log_file
-from cuikslam.log.records import Log
 from cuikslam.options import SolveOptions
+from cuikslam.results.association import named_landmarks, truth_verdict
 from cuikslam.results.io import write_result_csv, write_result_file
 from cuikslam.results.overview import overview_lines
-from cuikslam.results.solution import Solution, check_truth
-from cuikslam.results.summary import summary_holds
+from cuikslam.results.solution import Solution
 from cuikslam.results.table import hypothesis_table, summary_table
 from cuikslam.simulate.truth import GroundTruth, read_truth_file
 
@@ -83,93 +82,15 @@ def print_solution(
         console.print(f"… {n - max_tables} more hypotheses in the JSON result")
 
 
-def _partition(assignment: list[str], named: set[str] = frozenset()) -> list[int | str]:
-    """The assignment up to renaming: a named landmark keeps its id, others their first
-    observation's index."""
-    first: dict[str, int] = {}
-    return [a if a in named else first.setdefault(a, len(first)) for a in assignment]
-
-
-def _named(log: Log) -> set[str]:
-    """Landmark ids the log itself gives (named sightings and landmark priors)."""
-    return {r.landmark for r in log.records if getattr(r, "landmark", None) is not None}
-
-
 def report_truth(
     solution: Solution, truth: GroundTruth, console: Console, named: set[str] = frozenset()
 ) -> bool:
-    """Print whether the true hypothesis survived and its boxes contain the truth.
-
-    The true hypothesis is the survivor whose partition of the observations into
-    landmarks is the true one (labels may differ), with the landmarks the log names
-    (``named``) where the truth has them. Other hypotheses are wrong by
-    construction, so their boxes need not contain the true poses. Returns True when the
-    guarantee held.
-    """
-    if not solution.hypotheses and not solution.complete:
-        console.print(
-            "truth check: the search stopped on its budget before finding a hypothesis "
-            "(incomplete, not a refutation; raise --time-budget)"
-        )
-        return True
-    if not solution.hypotheses:
-        console.print("truth check: no hypothesis survived, yet the truth satisfies the log")
-        return False
-    true_partition = _partition(truth.assignment, named)
-    rank = _rank_of_truth(solution, true_partition, named)
-    if rank == 0:
-        survivors = int(solution.statistics.get("survivors", len(solution.hypotheses)))
-        held = (
-            None
-            if solution.correspondence is None
-            else summary_holds(solution.correspondence, truth.assignment, named)
-        )
-        if survivors > len(solution.hypotheses) and held is False and solution.complete:
-            console.print(
-                f"truth check: the true correspondence is not among the {survivors} survivors "
-                "(the correspondence summary covers every one)"
-            )
-            return False
-        if survivors > len(solution.hypotheses):
-            console.print(
-                f"truth check: the true correspondence is not among the {len(solution.hypotheses)}"
-                f" reported of {survivors} survivors (raise --max-hypotheses to see it)"
-            )
-            return True
-        if solution.complete:
-            console.print("truth check: the true correspondence is not among the survivors")
-            return False
-        console.print(
-            "truth check: the true correspondence is not among the survivors found before "
-            "the search stopped on its budget (the search was incomplete; raise --time-budget)"
-        )
-        return True
-    h = solution.hypotheses[rank - 1]
-    names = dict(zip(h.assignment, truth.assignment, strict=True))
-    landmark_xy = {ours: truth.exact_landmark(theirs) for ours, theirs in names.items()}
-    report = check_truth(h, truth.pose_ids, truth.exact_poses(), landmark_xy)
-    if not report.ok:
-        console.print(f"truth check: {len(report.misses)} boxes miss the truth:")
-        for miss in report.misses[:20]:
-            console.print(f"  {miss}")
-        return False
-    where = (
-        f" (hypothesis {rank} of {len(solution.hypotheses)})"
-        if len(solution.hypotheses) > 1
-        else ""
-    )
-    console.print(
-        f"truth check: the true correspondence survived{where} and its "
-        f"{report.checked} bounds all contain the truth"
-    )
-    return True
-
-
-def _rank_of_truth(solution: Solution, true_partition: list[int | str], named: set[str]) -> int:
-    for rank, h in enumerate(solution.hypotheses, start=1):
-        if _partition(h.assignment, named) == true_partition:
-            return rank
-    return 0
+    """Print :func:`~cuikslam.results.association.truth_verdict`; True when the guarantee
+    held."""
+    verdict = truth_verdict(solution, truth, named)
+    for line in verdict.lines:
+        console.print(line)
+    return verdict.ok
 
 
 @contextmanager
@@ -242,7 +163,7 @@ def run_solve(
         for message in solution.messages:
             console.print(message)
     status = 0
-    if truth is not None and not report_truth(solution, truth, console, _named(log)):
+    if truth is not None and not report_truth(solution, truth, console, named_landmarks(log)):
         status = 1
     if solution.refuted:
         status = 1

@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from cuikslam.results.association import rank_of
 from cuikslam.results.solution import Hypothesis, Solution, _check_pose, _check_xy
 from cuikslam.results.summary import _follows
 from cuikslam.simulate.truth import GroundTruth
@@ -176,11 +177,6 @@ def _widths(boxes: np.ndarray) -> np.ndarray:
         return boxes[..., 1] - boxes[..., 0]
 
 
-def _partition(assignment: list[str], named: Collection[str]) -> list[int | str]:
-    first: dict[str, int] = {}
-    return [a if a in named else first.setdefault(a, len(first)) for a in assignment]
-
-
 def _landmark_truth(
     h: Hypothesis, truth: GroundTruth, named: Collection[str]
 ) -> dict[str, str | None]:
@@ -247,11 +243,7 @@ def evaluate(
 
     true_rank = None
     if truth.assignment or n_obs == 0:
-        wanted = _partition(truth.assignment, named)
-        for rank, h in enumerate(solution.hypotheses, start=1):
-            if _partition(h.assignment, named) == wanted:
-                true_rank = rank
-                break
+        true_rank = rank_of(solution.hypotheses, truth.assignment, named)
     rank = true_rank or 1
     h = solution.hypotheses[rank - 1]
 
