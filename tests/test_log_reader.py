@@ -449,3 +449,15 @@ def test_file_errors_carry_file_name_and_line(tmp_path: Path) -> None:
     path.write_text("\n".join([PRIOR, "# c", odometry(3, 4)]) + "\n")
     with pytest.raises(LogFormatError, match=r"trip\.jsonl:3: odometry from pose 3"):
         read_log_file(path)
+
+
+def test_one_error_type_for_every_input_file_and_its_former_name(tmp_path) -> None:
+    from cuikslam.errors import InputFileError
+    from cuikslam.log import LogFormatError
+    from cuikslam.simulate.truth import read_truth_file
+
+    assert LogFormatError is InputFileError
+    bad = tmp_path / "trip.truth.json"
+    bad.write_text("{", encoding="utf-8")
+    with pytest.raises(InputFileError, match=r"trip\.truth\.json"):
+        read_truth_file(bad)

@@ -12,7 +12,7 @@ from rich.table import Table
 
 from cuikslam._atomic import atomic_write_text
 from cuikslam.cli._common import CommandError, check_figure_path, check_output_path, write_output
-from cuikslam.log.errors import LogFormatError
+from cuikslam.errors import InputFileError
 from cuikslam.log.reader import read_log_file
 from cuikslam.results.evaluate import Evaluation, evaluate, evaluation_to_json
 from cuikslam.results.io import read_result_file
@@ -33,7 +33,7 @@ def _named_ids(log_path: str | None, result_log: str, notes: list[str]) -> set[s
         return set()
     try:
         log = read_log_file(path)
-    except LogFormatError:
+    except InputFileError:
         if log_path is not None:
             raise
         notes.append(f"the result's log {path} is unreadable: partitions compared without names")

@@ -29,7 +29,7 @@ from cuikslam.cli._common import (
     check_output_path,
     write_output,
 )
-from cuikslam.log.errors import LogFormatError
+from cuikslam.errors import InputFileError
 from cuikslam.options import Level, SolveOptions
 
 if TYPE_CHECKING:
@@ -525,7 +525,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return int(args.func(args))
-    except LogFormatError as err:
+    except InputFileError as err:
         print(f"cuikslam: error: {err}", file=sys.stderr)
         return EXIT_INPUT
     except CommandError as err:

@@ -138,7 +138,7 @@ def _cmd_import_mrclam(args: argparse.Namespace) -> int:
             truth_gap=args.truth_gap,
         )
     except ValueError as err:
-        if type(err) is not ValueError:  # a LogFormatError names its file: main prints it
+        if type(err) is not ValueError:  # an InputFileError names its file: main prints it
             raise
         raise CommandError(f"import mrclam: {err}") from None
     _write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)

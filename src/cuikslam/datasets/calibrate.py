@@ -38,7 +38,7 @@ import numpy as np
 from cuikslam._atomic import atomic_write_text
 from cuikslam.datasets.mrclam import MrclamBounds, read_mrclam
 from cuikslam.datasets.mrclam_files import MrclamTables, read_mrclam_tables
-from cuikslam.log.errors import LogFormatError
+from cuikslam.errors import InputFileError
 from cuikslam.results.measurement_check import Outside, check_log
 
 __all__ = [
@@ -136,7 +136,7 @@ def calibrate_mrclam(
 
     Raises
     ------
-    LogFormatError
+    InputFileError
         If the files are malformed or the window holds no landmark sighting with truth.
     ValueError
         If ``quantile`` is not in (0, 1].
@@ -147,7 +147,7 @@ def calibrate_mrclam(
     base = base or MrclamBounds()
     readings, range_error, bearing_error = _sighting_errors(tables, start, duration, truth_gap)
     if range_error.size == 0:
-        raise LogFormatError(
+        raise InputFileError(
             tables.folder,
             None,
             f"robot {robot}: no landmark sighting with Vicon truth in the window",
@@ -254,7 +254,7 @@ def read_bounds_file(
 
     Raises
     ------
-    LogFormatError
+    InputFileError
         Naming the file: unreadable, not JSON, another dataset's, an unknown bound name,
         or a value that is not a finite number >= 0.
     """
@@ -262,32 +262,32 @@ def read_bounds_file(
         with open(path, encoding="utf-8") as handle:
             doc = json.load(handle)
     except OSError as err:
-        raise LogFormatError(path, None, f"cannot read the bounds file: {err.strerror}") from None
+        raise InputFileError(path, None, f"cannot read the bounds file: {err.strerror}") from None
     except json.JSONDecodeError as err:
-        raise LogFormatError(path, err.lineno, f"malformed JSON: {err.msg}") from None
+        raise InputFileError(path, err.lineno, f"malformed JSON: {err.msg}") from None
     except UnicodeDecodeError:
-        raise LogFormatError(path, None, "the bounds file is not UTF-8 text") from None
+        raise InputFileError(path, None, "the bounds file is not UTF-8 text") from None
     if not (isinstance(doc, dict) and doc.get("cuikslam_bounds") == FORMAT_VERSION):
-        raise LogFormatError(
+        raise InputFileError(
             path,
             None,
             'not a cuikslam bounds file (no "cuikslam_bounds": 1; see cuikslam calibrate)',
         )
     if doc.get("dataset") != dataset:
-        raise LogFormatError(
+        raise InputFileError(
             path, None, f"bounds of dataset {doc.get('dataset')!r}, not of {dataset!r}"
         )
     bounds = doc.get("bounds")
     if not isinstance(bounds, dict):
-        raise LogFormatError(path, None, '"bounds" must be an object {"range": ..., ...}')
+        raise InputFileError(path, None, '"bounds" must be an object {"range": ..., ...}')
     known = set(MrclamBounds.__dataclass_fields__ if names is None else names)
     for name, value in bounds.items():
         if name not in known:
-            raise LogFormatError(
+            raise InputFileError(
                 path, None, f"unknown bound {name!r}; known: {', '.join(sorted(known))}"
             )
         if isinstance(value, bool) or not isinstance(value, int | float):
-            raise LogFormatError(path, None, f"bound {name!r} must be a number, got {value!r}")
+            raise InputFileError(path, None, f"bound {name!r} must be a number, got {value!r}")
         if not (math.isfinite(value) and value >= 0):
-            raise LogFormatError(path, None, f"bound {name!r} must be finite and >= 0")
+            raise InputFileError(path, None, f"bound {name!r} must be finite and >= 0")
     return {k: float(v) for k, v in bounds.items()}

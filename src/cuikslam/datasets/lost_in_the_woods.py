@@ -36,7 +36,7 @@ import os
 
 import numpy as np
 
-from cuikslam.log.errors import LogFormatError
+from cuikslam.errors import InputFileError
 from cuikslam.log.records import Bounds, Log, Observation, PosePrior, Record, RelativePose
 from cuikslam.motion import compose_relative, compose_steps
 from cuikslam.simulate.truth import GroundTruth
@@ -103,7 +103,7 @@ def read_lost_in_the_woods(
 
     Raises
     ------
-    LogFormatError
+    InputFileError
         If the file cannot be read, lacks a variable, or the window is empty, leaves the
         recording, or has no valid Vicon pose (the prior needs one).
     """
@@ -112,15 +112,15 @@ def read_lost_in_the_woods(
     n_samples = t.size
     end = n_samples - 1 if steps is None else start + steps
     if keyframe < 1 or end <= start:
-        raise LogFormatError(path, None, f"need keyframe >= 1 and steps >= 1 ({steps=})")
+        raise InputFileError(path, None, f"need keyframe >= 1 and steps >= 1 ({steps=})")
     if start < 0 or end >= n_samples:
-        raise LogFormatError(
+        raise InputFileError(
             path, None, f"window {start}..{end} leaves the recording (0..{n_samples - 1})"
         )
     valid = data["true_valid"].ravel() != 0
     first_truth = start + int(np.argmax(valid[start : end + 1]))
     if not valid[first_truth]:
-        raise LogFormatError(
+        raise InputFileError(
             path, None, f"no valid Vicon pose in samples {start}..{end}: nothing to anchor"
         )
     v, om = data["v"].ravel().astype(float), data["om"].ravel().astype(float)
@@ -204,12 +204,12 @@ def _load(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
     try:
         data = scipy.io.loadmat(os.fspath(path))
     except FileNotFoundError:
-        raise LogFormatError(path, None, "no such file (expected dataset2.mat)") from None
+        raise InputFileError(path, None, "no such file (expected dataset2.mat)") from None
     except Exception as exc:  # scipy raises several types for a non-MAT file
-        raise LogFormatError(path, None, f"cannot read MATLAB file: {exc}") from None
+        raise InputFileError(path, None, f"cannot read MATLAB file: {exc}") from None
     missing = [name for name in _VARIABLES if name not in data]
     if missing:
-        raise LogFormatError(
+        raise InputFileError(
             path, None, f"not a Lost-in-the-Woods file: lacks variable(s) {', '.join(missing)}"
         )
     return data

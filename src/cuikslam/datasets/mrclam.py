@@ -71,8 +71,8 @@ from cuikslam.datasets.mrclam_files import (
     read_mrclam_tables,
     velocity_steps,
 )
+from cuikslam.errors import InputFileError
 from cuikslam.interval._arith import add, mul
-from cuikslam.log.errors import LogFormatError
 from cuikslam.log.records import Log, Observation, PosePrior, Record
 from cuikslam.simulate.truth import GroundTruth
 
@@ -196,7 +196,7 @@ def read_mrclam(
 
     Raises
     ------
-    LogFormatError
+    InputFileError
         If a file is missing or malformed, or the window is empty or starts where
         Vicon has no pose.
     """
@@ -221,7 +221,7 @@ def read_mrclam(
     times = keyframe_times(meas[inside, 0], t0, t1, keyframe_gap)
     own_truth, has_truth = interpolate_poses(tables.groundtruth[robot], times, truth_gap)
     if not has_truth[0]:
-        raise LogFormatError(
+        raise InputFileError(
             tables.folder, None, f"no Vicon pose of robot {robot} at the window start: move --start"
         )
 
@@ -285,7 +285,7 @@ def _window(
     commands = tables.odometry[:, 0]
     vicon = tables.groundtruth[tables.robot][:, 0]
     if not (start >= 0 and (duration is None or duration > 0)):
-        raise LogFormatError(
+        raise InputFileError(
             tables.folder, None, f"window start {start} s, duration {duration} s: need start "
             ">= 0 and duration > 0"
         )  # fmt: skip
@@ -293,7 +293,7 @@ def _window(
     t0 = max(commands[0] + max(start, bounds.lag), vicon[0])
     t1 = commands[-1] if duration is None else min(commands[0] + start + duration, commands[-1])
     if not t1 > t0:
-        raise LogFormatError(
+        raise InputFileError(
             tables.folder,
             None,
             f"the window from {start} s"

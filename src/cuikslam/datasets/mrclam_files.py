@@ -9,7 +9,7 @@ times in seconds::
     RobotN_Measurement.dat    time, barcode #, range [m], bearing [rad]
     RobotN_Groundtruth.dat    time, x [m], y [m], theta [rad]
 
-Every problem is reported as a :class:`~cuikslam.log.errors.LogFormatError` naming the
+Every problem is reported as a :class:`~cuikslam.log.errors.InputFileError` naming the
 file and line.
 """
 
@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cuikslam.log.errors import LogFormatError
+from cuikslam.errors import InputFileError
 
 __all__ = [
     "ROBOT_SUBJECTS",
@@ -71,20 +71,20 @@ def read_table_lines(
 
     Raises
     ------
-    LogFormatError
+    InputFileError
         Naming file and line: unreadable, a line with the wrong count of numbers, a
         non-finite number, a time going backwards, or no data at all.
     """
     try:
         text = path.read_text(encoding="ascii")
     except FileNotFoundError:
-        raise LogFormatError(
+        raise InputFileError(
             path, None, "no such file (is this a MRCLAM dataset folder?)"
         ) from None
     except OSError as err:
-        raise LogFormatError(path, None, f"cannot read: {err.strerror}") from None
+        raise InputFileError(path, None, f"cannot read: {err.strerror}") from None
     except UnicodeDecodeError as err:
-        raise LogFormatError(
+        raise InputFileError(
             path, None, f"not a text table (bad byte at offset {err.start})"
         ) from None
     fast = _fast_table(text, columns, times)
@@ -98,23 +98,23 @@ def read_table_lines(
             continue
         fields = stripped.split()
         if len(fields) != columns:
-            raise LogFormatError(
+            raise InputFileError(
                 path, number, f"expected {columns} numbers, got {len(fields)}: {stripped[:60]!r}"
             )
         try:
             row = [float(f) for f in fields]
         except ValueError:
-            raise LogFormatError(path, number, f"not a number in {stripped[:60]!r}") from None
+            raise InputFileError(path, number, f"not a number in {stripped[:60]!r}") from None
         if not all(math.isfinite(v) for v in row):
-            raise LogFormatError(path, number, f"a number is not finite in {stripped[:60]!r}")
+            raise InputFileError(path, number, f"a number is not finite in {stripped[:60]!r}")
         if times and rows and row[0] < rows[-1][0]:
-            raise LogFormatError(
+            raise InputFileError(
                 path, number, f"time {fields[0]} goes back (previous line: {rows[-1][0]!r})"
             )
         rows.append(row)
         lines.append(number)
     if not rows:
-        raise LogFormatError(path, None, "the table holds no data lines")
+        raise InputFileError(path, None, "the table holds no data lines")
     table = np.array(rows, dtype=float)
     table.flags.writeable = False
     return table, lines
@@ -171,7 +171,7 @@ class MrclamTables:
 
 def _integer(value: float, path: Path, line: int, what: str) -> int:
     if value != int(value):
-        raise LogFormatError(path, line, f"{what} {float(value)!r} is not an integer")
+        raise InputFileError(path, line, f"{what} {float(value)!r} is not an integer")
     return int(value)
 
 
@@ -180,14 +180,14 @@ def read_mrclam_tables(folder: str | os.PathLike[str], robot: int) -> MrclamTabl
 
     Raises
     ------
-    LogFormatError
+    InputFileError
         If the folder or a file is missing or malformed (naming the file and line).
     """
     root = Path(folder)
     if not root.is_dir():
-        raise LogFormatError(root, None, "no such folder (expected a MRCLAM dataset folder)")
+        raise InputFileError(root, None, "no such folder (expected a MRCLAM dataset folder)")
     if robot not in ROBOT_SUBJECTS:
-        raise LogFormatError(root, None, f"robot {robot}: MRCLAM robots are 1 to 5")
+        raise InputFileError(root, None, f"robot {robot}: MRCLAM robots are 1 to 5")
     barcodes_path = root / "Barcodes.dat"
     barcodes, lines = read_table_lines(barcodes_path, 2, times=False)
     subject_of_barcode: dict[int, int] = {}
@@ -195,7 +195,7 @@ def read_mrclam_tables(folder: str | os.PathLike[str], robot: int) -> MrclamTabl
         s = _integer(subject, barcodes_path, line, "subject")
         c = _integer(code, barcodes_path, line, "barcode")
         if c in subject_of_barcode:
-            raise LogFormatError(barcodes_path, line, f"barcode {c} names two subjects")
+            raise InputFileError(barcodes_path, line, f"barcode {c} names two subjects")
         subject_of_barcode[c] = s
     landmarks_path = root / "Landmark_Groundtruth.dat"
     table, lines = read_table_lines(landmarks_path, 5, times=False)
@@ -204,7 +204,7 @@ def read_mrclam_tables(folder: str | os.PathLike[str], robot: int) -> MrclamTabl
         for row, line in zip(table, lines, strict=True)
     }
     if robots := sorted(set(landmarks) & set(ROBOT_SUBJECTS)):
-        raise LogFormatError(landmarks_path, None, f"subjects {robots} are robots, not landmarks")
+        raise InputFileError(landmarks_path, None, f"subjects {robots} are robots, not landmarks")
     groundtruth: dict[int, np.ndarray | None] = {
         robot: read_table(root / f"Robot{robot}_Groundtruth.dat", 4)
     }

@@ -1,6 +1,6 @@
 """The log layer: the JSON Lines log format (``docs/log-format.md``) to and from records."""
 
-from cuikslam.log.errors import LogFormatError
+from cuikslam.log.errors import InputFileError, LogFormatError
 from cuikslam.log.reader import parse_log_lines, read_log_file
 from cuikslam.log.records import (
     Bounds,
@@ -17,6 +17,7 @@ from cuikslam.log.writer import log_to_lines, write_log_file
 
 __all__ = [
     "Bounds",
+    "InputFileError",
     "LandmarkPrior",
     "Log",
     "LogFormatError",

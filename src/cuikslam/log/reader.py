@@ -1,6 +1,6 @@
 """Reading a log: JSON Lines text into a validated :class:`~cuikslam.log.records.Log`.
 
-Every problem raises :class:`~cuikslam.log.errors.LogFormatError` naming the file, the
+Every problem raises :class:`~cuikslam.log.errors.InputFileError` naming the file, the
 line and what is wrong, because a log with a silent mistake yields a wrong map that is
 still "guaranteed".
 """
@@ -14,8 +14,8 @@ from collections.abc import Iterable
 from typing import Any
 
 from cuikslam._json import loads_object
+from cuikslam.errors import InputFileError
 from cuikslam.log._fields import Problem, record_from_json
-from cuikslam.log.errors import LogFormatError
 from cuikslam.log.records import (
     ClassPrior,
     LandmarkPrior,
@@ -36,7 +36,7 @@ def read_log_file(path: str | os.PathLike[str]) -> Log:
 
     Raises
     ------
-    LogFormatError
+    InputFileError
         If the file cannot be read, is not UTF-8, or breaks the format.
     """
     name = os.fspath(path)
@@ -44,12 +44,12 @@ def read_log_file(path: str | os.PathLike[str]) -> Log:
         with open(name, encoding="utf-8-sig") as file:
             content = file.read()
     except UnicodeDecodeError as err:
-        raise LogFormatError(
+        raise InputFileError(
             name, None, f"the file is not UTF-8 text (bad byte at offset {err.start})"
         ) from err
     except OSError as err:
         reason = err.strerror or str(err)
-        raise LogFormatError(name, None, f"cannot read the log: {reason}") from err
+        raise InputFileError(name, None, f"cannot read the log: {reason}") from err
     return parse_log_lines(io.StringIO(content), path=name)
 
 
@@ -62,16 +62,16 @@ def parse_log_lines(lines: Iterable[str], path: str = "<memory>") -> Log:
 
     Raises
     ------
-    LogFormatError
+    InputFileError
         Naming ``path``, the line and the problem.
     """
     if isinstance(lines, str):
         lines = io.StringIO(lines)
     records = [_parse_line(raw, number, path) for number, raw in _numbered_records(lines)]
     if not records:
-        raise LogFormatError(path, None, "the log is empty")
+        raise InputFileError(path, None, "the log is empty")
     if not any(isinstance(r, PosePrior) for r in records):
-        raise LogFormatError(
+        raise InputFileError(
             path,
             None,
             "no pose has a prior: every position would be relative; "
@@ -107,7 +107,7 @@ def _parse_line(raw: str, number: int, path: str) -> Record:
         try:
             return record_from_json(value, number)
         except Problem as problem:
-            raise LogFormatError(path, number, str(problem)) from problem
+            raise InputFileError(path, number, str(problem)) from problem
     try:
         try:
             value = json.loads(raw, parse_constant=_reject_constant, object_pairs_hook=_unique_keys)
@@ -119,7 +119,7 @@ def _parse_line(raw: str, number: int, path: str) -> Record:
             raise Problem("malformed JSON: nested too deeply") from err
         return record_from_json(value, number)
     except Problem as problem:
-        raise LogFormatError(path, number, str(problem)) from problem
+        raise InputFileError(path, number, str(problem)) from problem
 
 
 def _check_order(records: list[Record], path: str) -> None:
@@ -135,7 +135,7 @@ def _check_order(records: list[Record], path: str) -> None:
     )
 
     def fail(record: Record, problem: str) -> None:
-        raise LogFormatError(path, record.line, problem)
+        raise InputFileError(path, record.line, problem)
 
     def same_class(record: Observation | LandmarkPrior, landmark: str) -> None:
         earlier = landmark_seen.setdefault(landmark, (record.landmark_class, record.line))

@@ -44,7 +44,7 @@ def write_log_file(log: Log, path: str | os.PathLike[str], *, validate: bool = T
 
     Raises
     ------
-    LogFormatError
+    InputFileError
         If ``validate`` and the log breaks the format (``path`` keeps its old content).
     ValueError, TypeError
         If a record holds a non-finite number or a value of the wrong type.

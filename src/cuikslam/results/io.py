@@ -45,7 +45,7 @@ import numpy as np
 from cuikslam import __version__
 from cuikslam._atomic import atomic_write_text
 from cuikslam._json import dumps
-from cuikslam.log.errors import LogFormatError
+from cuikslam.errors import InputFileError
 from cuikslam.results.solution import Hypothesis, Solution
 
 __all__ = ["read_result_file", "solution_to_json", "write_result_csv", "write_result_file"]
@@ -181,24 +181,24 @@ def _hypothesis_from_json(doc: dict[str, Any], where: str) -> Hypothesis:
 def read_result_file(path: str | os.PathLike[str]) -> Solution:
     """Read a result JSON written by :func:`write_result_file`.
 
-    Raises LogFormatError (one line naming the file) if it is unreadable or malformed.
+    Raises InputFileError (one line naming the file) if it is unreadable or malformed.
     """
     name = os.fspath(path)
     try:
         with open(name, encoding="utf-8") as handle:
             doc = json.load(handle)
     except OSError as err:
-        raise LogFormatError(name, None, f"cannot read result file: {err.strerror}") from None
+        raise InputFileError(name, None, f"cannot read result file: {err.strerror}") from None
     except json.JSONDecodeError as err:
-        raise LogFormatError(name, err.lineno, f"malformed JSON: {err.msg}") from None
+        raise InputFileError(name, err.lineno, f"malformed JSON: {err.msg}") from None
     except UnicodeDecodeError as err:
         problem = f"the file is not UTF-8 text (bad byte at offset {err.start})"
-        raise LogFormatError(name, None, problem) from None
+        raise InputFileError(name, None, problem) from None
     except RecursionError:
-        raise LogFormatError(name, None, "malformed JSON: nested too deeply") from None
+        raise InputFileError(name, None, "malformed JSON: nested too deeply") from None
     if not isinstance(doc, dict):
         problem = 'not a cuikslam result file: expected a JSON object {"hypotheses": ...}'
-        raise LogFormatError(name, None, problem)
+        raise InputFileError(name, None, problem)
     try:
         hypotheses = [
             _hypothesis_from_json(h, f"hypothesis {i + 1}") for i, h in enumerate(doc["hypotheses"])
@@ -215,7 +215,7 @@ def read_result_file(path: str | os.PathLike[str]) -> Solution:
         )
     except (KeyError, TypeError, ValueError, AttributeError) as err:
         problem = f"missing key {err}" if isinstance(err, KeyError) else str(err)
-        raise LogFormatError(name, None, f"not a cuikslam result file: {problem}") from None
+        raise InputFileError(name, None, f"not a cuikslam result file: {problem}") from None
 
 
 def write_result_csv(solution: Solution, path: str | os.PathLike[str]) -> None:

@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from cuikslam._atomic import atomic_write_text
-from cuikslam.log.errors import LogFormatError
+from cuikslam.errors import InputFileError
 from cuikslam.log.records import Bounds
 
 __all__ = [
@@ -167,27 +167,27 @@ def read_truth_file(path: str | os.PathLike[str]) -> GroundTruth:
 
     Raises
     ------
-    LogFormatError
+    InputFileError
         If the file cannot be read, is not JSON, or does not have a truth layout.
     """
     try:
         text = Path(path).read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise LogFormatError(path, None, f"cannot read truth file: {exc}") from exc
+        raise InputFileError(path, None, f"cannot read truth file: {exc}") from exc
     try:
         doc = json.loads(text, parse_float=_json_number)
     except json.JSONDecodeError as exc:
-        raise LogFormatError(path, exc.lineno, f"not valid JSON: {exc.msg}") from exc
+        raise InputFileError(path, exc.lineno, f"not valid JSON: {exc.msg}") from exc
     except (ValueError, RecursionError) as exc:  # e.g. an integer of 5,000 digits
-        raise LogFormatError(path, None, f"not valid JSON: {exc}") from None
+        raise InputFileError(path, None, f"not valid JSON: {exc}") from None
     try:
         return _truth_from_json(doc)
     except _TruthLayoutError as exc:
-        raise LogFormatError(path, None, str(exc)) from None
+        raise InputFileError(path, None, str(exc)) from None
 
 
 class _TruthLayoutError(Exception):
-    """A JSON document that is not a truth file; turned into ``LogFormatError``."""
+    """A JSON document that is not a truth file; turned into ``InputFileError``."""
 
 
 _ASSIGNMENT_KEYS = ("assignment", "obs_truth", "observation_landmark")
