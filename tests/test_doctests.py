@@ -13,13 +13,16 @@ import cuikslam
 
 def _modules_with_examples() -> list[str]:
     names = []
-    for info in pkgutil.walk_packages(cuikslam.__path__, "cuikslam."):
-        spec = importlib.util.find_spec(info.name)
+    packages = [cuikslam.__name__] + [
+        info.name for info in pkgutil.walk_packages(cuikslam.__path__, "cuikslam.")
+    ]
+    for name in packages:
+        spec = importlib.util.find_spec(name)
         if spec is None or spec.origin is None or not spec.origin.endswith(".py"):
             continue
         with open(spec.origin, encoding="utf-8") as source:
             if ">>>" in source.read():
-                names.append(info.name)
+                names.append(name)
     return names
 
 
@@ -28,6 +31,7 @@ MODULES = _modules_with_examples()
 
 def test_some_modules_have_examples() -> None:
     assert "cuikslam.interval.ops" in MODULES and "cuikslam.results.summary" in MODULES
+    assert "cuikslam" in MODULES
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -67,3 +67,18 @@ def test_known_correspondence_warm_up_leaves_the_search_kernels_alone() -> None:
         "assert _kernels.apply.signatures\n"
     )
     loaded_after(code)
+
+
+def test_the_main_names_are_importable_from_the_package_without_loading_them() -> None:
+    code = (
+        "import cuikslam\n"
+        "assert {'solve', 'SolveOptions', 'read_log_file', 'Solution'} <= set(cuikslam.__all__)\n"
+        "assert 'solve' in dir(cuikslam)\n"
+    )
+    assert loaded_after(code) == []
+    import cuikslam
+
+    for name in cuikslam.__all__:
+        assert getattr(cuikslam, name) is not None, name
+    with pytest.raises(AttributeError):
+        cuikslam.no_such_name  # noqa: B018

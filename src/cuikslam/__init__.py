@@ -1,4 +1,20 @@
-"""cuikslam: guaranteed 2-D SLAM with bounded errors and unknown landmark correspondence."""
+"""cuikslam: guaranteed 2-D SLAM with bounded errors and unknown landmark correspondence.
+
+The main names are importable from here; each loads its module on first use, so
+``import cuikslam`` stays fast.
+
+Examples
+--------
+>>> import cuikslam
+>>> log, truth = cuikslam.simulate_paper(seed=0)
+>>> solution = cuikslam.solve(log, consistency="hull", time_budget=None)
+>>> best = solution.best
+>>> cuikslam.check_truth(best, truth.pose_ids, truth.exact_poses()).ok
+True
+"""
+
+import importlib
+from typing import Any
 
 from cuikslam._fpu import ensure_round_to_nearest
 
@@ -7,3 +23,46 @@ from cuikslam._fpu import ensure_round_to_nearest
 ensure_round_to_nearest()
 
 __version__ = "0.1.0"
+
+_HOMES: dict[str, str] = {
+    # reading and writing logs
+    "Log": "cuikslam.log.records",
+    "read_log_file": "cuikslam.log.reader",
+    "parse_log_lines": "cuikslam.log.reader",
+    "write_log_file": "cuikslam.log.writer",
+    "InputFileError": "cuikslam.errors",
+    # solving
+    "solve": "cuikslam.solver",
+    "SolveOptions": "cuikslam.options",
+    "Level": "cuikslam.options",
+    "KinematicGraph": "cuikslam.graph.kinematic_graph",
+    "propagate": "cuikslam.narrowing.propagation",
+    "Propagation": "cuikslam.narrowing.propagation",
+    "Status": "cuikslam.narrowing.propagation",
+    # results
+    "Solution": "cuikslam.results.solution",
+    "Hypothesis": "cuikslam.results.solution",
+    "check_truth": "cuikslam.results.solution",
+    "read_result_file": "cuikslam.results.io",
+    "write_result_file": "cuikslam.results.io",
+    # simulation
+    "simulate_paper": "cuikslam.simulate.paper",
+    "simulate_random_world": "cuikslam.simulate.random_world",
+    "GroundTruth": "cuikslam.simulate.truth",
+    "read_truth_file": "cuikslam.simulate.truth",
+}
+
+__all__ = sorted(_HOMES)
+
+
+def __getattr__(name: str) -> Any:
+    """One of the main names, from its module (imported on first use)."""
+    if name not in _HOMES:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(_HOMES[name]), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted({*globals(), *_HOMES})

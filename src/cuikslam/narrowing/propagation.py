@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import enum
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -38,16 +38,47 @@ class Status(enum.Enum):
 
 @dataclass
 class Propagation:
-    """The narrowed bounds of every variable, and how they were obtained."""
+    """The narrowed bounds of every variable, and how they were obtained.
+
+    ``lo`` and ``hi`` are indexed like the graph's variables; :meth:`pose_box` and
+    :meth:`landmark_box` read them by pose id and landmark id.
+
+    Examples
+    --------
+    >>> from cuikslam.graph import KinematicGraph
+    >>> graph = KinematicGraph()
+    >>> graph.add_pose_prior(0, x=(0, 0), y=(0, 0), theta=(0, 0))
+    >>> _ = graph.add_odometry(0, 1, turn=(0, 0), distance=(1, 2))
+    >>> result = propagate(graph)
+    >>> result.pose_box(1).tolist()  # x in [1, 2], widened by the outward rounding of cos
+    [[0.9999999999999997, 2.0000000000000004], [0.0, 0.0], [0.0, 0.0]]
+    """
 
     lo: np.ndarray
     hi: np.ndarray
     status: Status
     applications: int
+    graph: KinematicGraph | None = field(default=None, repr=False, compare=False)
+    """The graph whose variables these are (None: unknown)."""
 
     @property
     def is_empty(self) -> bool:
         return self.status is Status.INCONSISTENT
+
+    def pose_box(self, pose: int) -> np.ndarray:
+        """The (3, 2) box of ``pose``: (x, y, theta) × (lo, hi)."""
+        i = self._graph().pose_index(pose)
+        return np.stack([self.lo[i : i + 3], self.hi[i : i + 3]], axis=-1)
+
+    def landmark_box(self, landmark: str) -> np.ndarray:
+        """The (2, 2) box of ``landmark``: (x, y) × (lo, hi)."""
+        i = self._graph().landmark_index(landmark)
+        return np.stack([self.lo[i : i + 2], self.hi[i : i + 2]], axis=-1)
+
+    def _graph(self) -> KinematicGraph:
+        if self.graph is None:
+            raise ValueError("this propagation does not know its graph")
+        return self.graph
 
 
 def propagate(
@@ -96,4 +127,4 @@ def propagate(
         int(max_rounds),
         int(max_applications),
     )
-    return Propagation(lo, hi, Status(status), int(applications))
+    return Propagation(lo, hi, Status(status), int(applications), graph)
