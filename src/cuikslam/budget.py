@@ -38,9 +38,9 @@ __all__ = [
 DEFAULT_TIME_BUDGET = 2.0
 """Seconds a solve may take by default (``cuikslam solve --time-budget``).
 
-Chosen so that ``cuikslam solve`` on a log of up to 50 poses finishes in under 5 s end to
-end on a loaded 2-core machine, where starting Python, importing the solver and loading
-its compiled kernels alone take 1.5-2.5 s."""
+Chosen so that ``cuikslam solve`` on a short log finishes within a few seconds end to end,
+start-up (Python, the solver's imports, its compiled kernels) included; the figures are
+measured by ``benchmarks/bench_end_to_end.py`` and reported in the README."""
 COMMAND_TARGET = 4.0
 """Seconds ``cuikslam solve`` aims at end to end with its default ``--time-budget auto``:
 the solve gets what start-up (imports, loading the compiled kernels) left of it..."""
@@ -48,10 +48,9 @@ MIN_COMMAND_BUDGET = 1.0
 """...but at least this much..."""
 SECONDS_PER_POSE = 0.15
 """...and at least this much per pose of the log. The default level's LP sweeps cost a
-roughly constant time per pose (``benchmarks/bench_long_logs.py``: 0.11-0.15 s per pose
-on the octagon driven 100 to 1,000 poses, on a loaded 2-core machine), so a
-long log gets time in proportion: its first sweep reaches the end of the log, and the
-result says ``lp (budget)`` when the later sweeps were cut."""
+roughly constant time per pose (measured by ``benchmarks/bench_long_logs.py``, figures
+in the README), so a long log gets time in proportion: its first sweep reaches the end of
+the log, and the result says ``lp (budget)`` when the later sweeps were cut."""
 STRENGTHEN_SHARE = 0.7
 """Fraction of the time left after hull narrowing that the stronger level may use; the
 witness search gets the rest (and whatever the stronger level did not need)."""
@@ -136,9 +135,8 @@ def blas_single_thread() -> Iterator[None]:
     """Run the block with one BLAS thread (OpenBLAS, MKL...), when threadpoolctl is present.
 
     The witness search factorises many tiny matrices (an SVD per least-squares step); a
-    multi-threaded BLAS spends more on waking its threads than on the work, and on a loaded
-    machine it is 10-15 times slower than one thread (measured: 12.5 ms against 0.8 ms for
-    an 80 x 45 SVD with another job on the second core).
+    multi-threaded BLAS spends more on waking its threads than on the work: on a loaded
+    machine, many times slower than one thread.
     """
     try:
         from threadpoolctl import threadpool_limits

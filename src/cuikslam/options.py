@@ -39,7 +39,7 @@ class Level(enum.StrEnum):
     LP = "lp"
     """``hull``, then rounds of the rigorous polytope-hull operator (much tighter)."""
     LP_SPLIT = "lp-split"
-    """``lp``, then the widest headings bisected (about 3x the time of ``lp``)."""
+    """``lp``, then the widest headings bisected (tighter, and slower than ``lp``)."""
 
     @classmethod
     def parse(cls, value: str) -> Level:

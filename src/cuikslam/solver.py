@@ -74,8 +74,8 @@ def warm_up(unknown: bool = True) -> float:
     Runs before the time budget starts, so that the first solve after installing cuikslam
     spends its budget on the log rather than on compiling. ``unknown`` also loads the
     correspondence search's kernels, which a known-correspondence solve does not use
-    (0.1-0.2 s from the cache, far more to compile on a first run). Returns the seconds it
-    took (0 when done before).
+    (quick from numba's cache, far longer to compile on a first run). Returns the seconds
+    it took (0 when done before).
     """
     if unknown in _warmed_up:
         return 0.0

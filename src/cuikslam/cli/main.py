@@ -247,7 +247,7 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
         default=SolveOptions.consistency.value,
         help="how hard to narrow: 'hull' = fixpoint of the narrowing operators (fastest); "
         "'lp' = plus rounds of the rigorous polytope-hull operator (much tighter); "
-        "'lp-split' = plus bisection of the widest headings (about 3x the time of 'lp'); "
+        "'lp-split' = plus bisection of the widest headings (tighter, slower than 'lp'); "
         "'auto' (default) = 'lp', at any length",
     )
     p.add_argument(
@@ -366,7 +366,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="SECONDS",
         help=f"seconds each solve may take ('auto': {DEFAULT_TIME_BUDGET:g} s; 'none': no "
         "limit); survivors the witness search has not proven by then stay undecided "
-        "(about 30 s decides every one)",
+        "(a larger budget decides more of them)",
     )
     p.set_defaults(func=_cmd_paper)
 
@@ -544,7 +544,7 @@ def entry() -> None:
     """The console script: :func:`main`, then end the process at once.
 
     Finalising the interpreter once the compiled kernels are loaded (numba, LLVM) takes
-    0.3-1 s on a loaded machine, for nothing: by then every output file is written and
+    a noticeable part of a second, for nothing: by then every output file is written and
     closed, and the streams are flushed here. An exception (a bug) or ``SystemExit``
     (usage errors, ``--help``) leaves the normal way.
     """
