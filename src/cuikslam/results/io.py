@@ -1,34 +1,14 @@
 """Result files: the JSON contract read by other tools, and a flat CSV.
 
-JSON layout (stable keys)::
-
-    {"complete": true,
-     "hypotheses": [{"assignment": ["L0", ...],
-                     "poses": {"0": {"x": [lo, hi], "y": [lo, hi], "theta": [lo, hi]}},
-                     "landmarks": {"L0": {"class": "door", "x": [lo, hi], "y": [lo, hi]}},
-                     "status": "not refuted", "consistency": "lp", "rank": 1,
-                     "n_landmarks": 4}],
-     "statistics": {...}, "timings": {...}, "log": "...", "consistency": "...",
-     "correspondence": {"follows": [["#0", "new"], ...], "certain": [true, ...],
-                        "factors": [{"observations": [3, 7], "choices": [[...], ...]}],
-                        "pose_hull": [[[lo, hi], [lo, hi], [lo, hi]], ...],
-                        "reported": 12, "survivors": 12}}
-
-``correspondence`` (unknown correspondence only) says, for each observation, what it can
-follow across the reported survivors: ``"#j"`` (observation j saw the same landmark
-last), a named landmark's id, or ``"new"``; and how the ambiguous observations split into
-independent groups whose choices combine freely, over every survivor (reported or not);
-``pose_hull`` holds each pose's box whatever the correspondence.
-
-``consistency`` (of the solve and of each hypothesis) is the level the boxes reach:
-``hull``, ``lp`` or ``lp-split``, or ``"lp (budget)"`` / ``"lp-split (budget)"`` when the
-time budget cut that level short (the boxes then reach the level below it, narrowed
-further by the rounds that ran; see :mod:`cuikslam.narrowing.consistency`). Budgets that
-ran out also show in ``statistics`` (``lp_budget_exhausted``,
-``witness_budget_exhausted``) and ``messages``; ``timings`` holds ``time_budget_s``.
+The JSON layout, with every key it has, is documented in ``docs/result-format.md``
+(``tests/test_result_doc.py`` keeps the page and :func:`solution_to_json` in step): the
+solve's ``complete``, ``refuted``, ``consistency``, ``statistics``, ``timings`` and
+``messages``; each hypothesis' assignment, pose and landmark boxes, status, level, rank
+and witness; for unknown correspondence, what the survivors agree on
+(``correspondence``).
 
 Bounds are written with full precision (``repr`` of the floats), so reading a result
-back gives the same boxes. Files are written atomically.
+back gives the same boxes; an unbounded side is ``null``. Files are written atomically.
 """
 
 from __future__ import annotations
