@@ -416,20 +416,20 @@ class _Outcome:
 
 def explore(
     explorer: Explorer,
-    start: Node,
+    start: Node | list[Node],
     budget: Budget,
     keep: int,
     on_survivor: Callable[[Node], None] | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> _Outcome:
-    """Depth-first search of the subtree of ``start``.
+    """Depth-first search of the subtree of ``start`` (of each start node in turn).
 
     Every survivor is counted (and passed to ``on_survivor``); the ``keep`` best-ranked are
     returned. A budget stop returns the pending subtrees as ``unexplored``.
     """
     stats, graph = explorer.stats, explorer.graph
     n_decisions = len(explorer.problem.decisions)
-    stack = [start]
+    stack = start[::-1] if isinstance(start, list) else [start]
     survivors: list[Node] = []
     done = 0.0
     expanded = 0
@@ -480,7 +480,11 @@ class _Tally:
         self._hi = np.full(len(self._cols), -np.inf)
 
     def add(self, node: Node) -> None:
-        decisions = node.decisions()
+        self.add_assignment(node.decisions())
+        self.add_boxes(*self.explorer.graph.values(node.overlay, self._cols))
+
+    def add_assignment(self, decisions: list[int]) -> None:
+        """A survivor's assignment, given by its decisions (landmark numbers)."""
         p = self.explorer.problem
         tallied = len(self.assignments) < MAX_TALLIED
         if tallied or self.on_survivor is not None:
@@ -496,7 +500,9 @@ class _Tally:
             if tallied:
                 self._position[tuple(decisions)] = len(self.assignments)
                 self.assignments.append(assignment)
-        lo, hi = self.explorer.graph.values(node.overlay, self._cols)
+
+    def add_boxes(self, lo: np.ndarray, hi: np.ndarray) -> None:
+        """Pose boxes (at the columns ``_cols``) of survivors, joined into the hull."""
         np.minimum(self._lo, lo, out=self._lo)
         np.maximum(self._hi, hi, out=self._hi)
 
@@ -677,28 +683,56 @@ def solve_unknown(
             tally.add,
             progress,
         )
+    unexplored = [n.decisions() for n in outcome.unexplored]
+    return finish_search(
+        log, explorer, tally, outcome.survivors, unexplored, outcome.stop_reason,
+        consistency, strengthen_limit, progress, start, messages,
+    )  # fmt: skip
+
+
+def finish_search(
+    log: Log,
+    explorer: Explorer,
+    tally: _Tally,
+    found: list[Node],
+    unexplored: list[list[int]],
+    stop_reason: str | None,
+    consistency: str,
+    strengthen_limit: int,
+    progress: Callable[[int, int], None] | None,
+    start: float,
+    messages: list[str],
+) -> Solution:
+    """What follows the search, wherever it ran: the survivors' stronger level, the
+    reported hypotheses, the summary, the statistics and the account of a budget stop.
+
+    ``found`` are the best-ranked survivors (nodes of ``explorer``), ``explorer.stats``
+    counts the whole search, ``unexplored`` names the subtrees left by a budget stop
+    (``stop_reason``), the next one to explore last.
+    """
+    problem = explorer.problem
     stats = explorer.stats
-    complete = outcome.stop_reason is None
+    complete = stop_reason is None
     if not complete:
-        stats.unexplored_subtrees = len(outcome.unexplored)
-        shown = "; ".join(str(n.decisions()) for n in outcome.unexplored[-SHOWN_PREFIXES:][::-1])
+        stats.unexplored_subtrees = len(unexplored)
+        shown = "; ".join(str(list(d)) for d in unexplored[-SHOWN_PREFIXES:][::-1])
         messages.append(
-            f"the search stopped on its {outcome.stop_reason} with {len(outcome.unexplored)} "
+            f"the search stopped on its {stop_reason} with {len(unexplored)} "
             f"subtrees unexplored ({100 * (1 - stats.explored_fraction):.1f}% of the tree; "
             f"first: {shown}); the result is INCOMPLETE: the true hypothesis may be in them"
         )
     survivors, level = _strengthen_survivors(
-        explorer, outcome.survivors, consistency, strengthen_limit, messages
+        explorer, found, consistency, strengthen_limit, messages
     )
     alive = {tuple(n.decisions()) for n in survivors}
-    for node in outcome.survivors:
+    for node in found:
         if tuple(node.decisions()) not in alive:  # refuted by the stronger level
             tally.discard(node)
             stats.survivors -= 1
     hypotheses = sorted(
         (_hypothesis(explorer, n) for n in survivors), key=lambda h: (h.n_landmarks, h.box_size)
     )
-    if stats.survivors > len(outcome.survivors):
+    if stats.survivors > len(found):
         messages.append(
             f"{stats.survivors} hypotheses survived; the {len(hypotheses)} best-ranked are "
             "reported (raise --max-hypotheses to see more)"

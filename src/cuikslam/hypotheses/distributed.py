@@ -1,0 +1,528 @@
+"""The correspondence search, and batches of logs, on a Dask cluster.
+
+The search tree of :mod:`.search` is split into subtrees, each named by its *prefix* (the
+decisions of its root). A worker explores a list of prefixes with
+:func:`explore_prefixes`, a pure function of (log, prefixes, options): it replays the
+prefixes from the root, searches their subtrees depth first and returns a small
+:class:`SubtreeResult` (survivors as decisions, their best-ranked, the hull of their pose
+boxes, counts, and the prefixes left pending when its work quantum ran out). The client
+expands the top of the tree breadth first into a few prefixes per worker, submits them,
+resubmits pending prefixes (split among idle workers: large subtrees are split again) and
+merges the results; :func:`~.search.finish_search` then does what follows the search,
+exactly as in one process. A task lost with its worker is run again by Dask (or
+resubmitted here): a subtree is counted once its task's result has arrived, never before.
+
+Dask is imported only here, and only when a cluster is asked for
+(``pip install "cuikslam[distributed]"``).
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+import uuid
+from collections import deque
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from cuikslam._fpu import ensure_round_to_nearest
+from cuikslam.hypotheses.problem import Problem, build_problem
+from cuikslam.hypotheses.search import (
+    DEFAULT_MAX_HYPOTHESES,
+    DEFAULT_STRENGTHEN_DURING,
+    DEFAULT_STRENGTHEN_LIMIT,
+    MAX_TALLIED,
+    Budget,
+    Explorer,
+    Node,
+    SearchStatistics,
+    _rank_key,
+    _Tally,
+    explore,
+    finish_search,
+)
+from cuikslam.log.records import Log
+from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
+from cuikslam.narrowing.propagation import DEFAULT_RTOL
+from cuikslam.results.solution import Solution
+
+__all__ = [
+    "INSTALL_HINT",
+    "DaskMissingError",
+    "SubtreeResult",
+    "TaskOptions",
+    "dask_client",
+    "explore_prefixes",
+    "search_distributed",
+    "solve_batch",
+]
+
+INSTALL_HINT = 'this option needs Dask: pip install "cuikslam[distributed]"'
+DEFAULT_QUANTUM_S = 1.0
+"""Seconds a task explores before it returns its pending subtrees (to be split again)."""
+SPLIT_PER_SLOT = 3
+"""Prefixes the client's breadth-first expansion aims at, per worker thread."""
+MAX_BATCH = 8
+"""Prefixes one task explores at most (they share the replay of their common decisions)."""
+_NOT_SUMMED = {"peak_frontier", "explored_fraction", "survivors", "unexplored_subtrees"}
+
+
+class DaskMissingError(ImportError):
+    """A cluster was asked for and Dask is not installed."""
+
+
+@dataclass(frozen=True)
+class TaskOptions:
+    """What every task of one search shares (picklable, small)."""
+
+    key: str
+    """Names the search: a worker builds the problem once per key."""
+    consistency: str
+    rtol: float
+    strengthen_during: int
+    local_frame: bool
+    keep: int
+    """Best-ranked survivors returned."""
+    all_survivors: bool
+    """Return the decisions of every survivor (else the first ``MAX_TALLIED``)."""
+    quantum_s: float | None
+    deadline: float | None
+    """Epoch seconds (:func:`time.time`) at which the whole search stops."""
+
+
+@dataclass
+class SubtreeResult:
+    """What a task found in its subtrees; results merge by concatenation and sums."""
+
+    prefixes: list[tuple[int, ...]]
+    survivors: np.ndarray
+    """Decisions of the survivors, one row each, in depth-first order."""
+    n_survivors: int
+    best: list[tuple[Any, tuple[int, ...]]]
+    """(rank key, decisions) of the best-ranked survivors."""
+    hull_lo: np.ndarray
+    hull_hi: np.ndarray
+    counts: dict[str, int]
+    """Fields of :class:`~.search.SearchStatistics` that add up."""
+    peak_frontier: int
+    done: float
+    """Share of the whole tree this task decided."""
+    unexplored: list[tuple[int, ...]]
+    """Pending prefixes when the quantum or the deadline stopped it (the next one last)."""
+    lost_on_replay: int
+    cpu_s: float
+
+    @property
+    def expanded(self) -> int:
+        return self.counts["branch_points"]
+
+
+# ------------------------------------------------------------------------- the task
+_local = threading.local()
+
+
+def _problem(log: Log, key: str) -> Problem:
+    """The problem of ``log``, built once per search and worker thread."""
+    cached = getattr(_local, "problem", None)
+    if cached is None or cached[0] != key:
+        cached = (key, build_problem(log))
+        _local.problem = cached
+    return cached[1]
+
+
+def replay_all(
+    explorer: Explorer, root: Node, prefixes: list[tuple[int, ...]]
+) -> list[Node | None]:
+    """The nodes reached by ``prefixes`` (sorted), sharing the expansions of common
+    decisions; None where a step is refuted or is not a candidate."""
+    path: list[Node | None] = [root]
+    current: list[int] = []
+    out: list[Node | None] = []
+    for prefix in prefixes:
+        common = 0
+        while common < min(len(current), len(prefix)) and current[common] == prefix[common]:
+            common += 1
+        del path[common + 1 :], current[common:]
+        node = path[-1]
+        for number in prefix[common:]:
+            if node is not None:
+                kids, _ = explorer.children(node)
+                node = next((c for c in kids if c.assigned[0] == number), None)
+            path.append(node)
+            current.append(number)
+        out.append(node)
+    return out
+
+
+def explore_prefixes(
+    log: Log, prefixes: list[tuple[int, ...]], options: TaskOptions, max_nodes: int | None
+) -> SubtreeResult:
+    """Explore the subtrees of ``prefixes``: a pure function of its arguments (but for
+    where a time quantum or the deadline stops it, which ``unexplored`` reports).
+
+    Parameters
+    ----------
+    log : Log
+        The log being solved.
+    prefixes : list of tuple of int
+        Roots of the subtrees (decisions, landmark numbers), sorted.
+    options : TaskOptions
+        The search's options.
+    max_nodes : int or None
+        Node expansions this task may make (the work quantum in nodes).
+
+    Returns
+    -------
+    SubtreeResult
+        Counts exclude the replay of the prefixes (the client counted those nodes).
+    """
+    cpu = time.thread_time()
+    ensure_round_to_nearest()
+    problem = _problem(log, options.key)
+    explorer = Explorer(
+        problem, options.rtol, options.consistency, options.strengthen_during, options.local_frame
+    )
+    deadline = _local_deadline(options.deadline)
+    explorer.deadline = deadline
+    root = explorer.root()
+    starts = replay_all(explorer, root, prefixes) if root is not None else [None] * len(prefixes)
+    kept = [n for n in starts if n is not None]
+    explorer.stats = SearchStatistics()
+    applications = explorer.graph.applications
+    tally = _Tally(explorer, None)
+    decided: list[list[int]] = []
+
+    def found(node: Node) -> None:
+        if options.all_survivors or len(decided) < MAX_TALLIED:
+            decided.append(node.decisions())
+        tally.add_boxes(*explorer.graph.values(node.overlay, tally._cols))
+
+    if options.quantum_s is not None:
+        quantum_end = time.perf_counter() + options.quantum_s
+        deadline = quantum_end if deadline is None else min(deadline, quantum_end)
+    outcome = explore(explorer, kept, Budget(deadline, max_nodes), options.keep, found)
+    stats = explorer.stats
+    stats.operator_applications += explorer.graph.applications - applications
+    counts = {k: v for k, v in asdict(stats).items() if k not in _NOT_SUMMED}
+    n = len(problem.decisions)
+    return SubtreeResult(
+        prefixes=list(prefixes),
+        survivors=np.array(decided, dtype=np.int32).reshape(len(decided), n),
+        n_survivors=stats.survivors,
+        best=[(_rank_key(explorer, s), tuple(s.decisions())) for s in outcome.survivors],
+        hull_lo=tally._lo,
+        hull_hi=tally._hi,
+        counts=counts,
+        peak_frontier=stats.peak_frontier,
+        done=float(stats.explored_fraction),
+        unexplored=[tuple(u.decisions()) for u in outcome.unexplored],
+        lost_on_replay=len(starts) - len(kept),
+        cpu_s=time.thread_time() - cpu,
+    )
+
+
+def _local_deadline(epoch: float | None) -> float | None:
+    """An epoch deadline on this process's :func:`time.perf_counter` clock."""
+    return None if epoch is None else time.perf_counter() + (epoch - time.time())
+
+
+# ------------------------------------------------------------------------- the client
+def search_distributed(
+    log: Log,
+    *,
+    client: Any,
+    consistency: str = DEFAULT_LEVEL,
+    max_hypotheses: int = DEFAULT_MAX_HYPOTHESES,
+    strengthen_limit: int = DEFAULT_STRENGTHEN_LIMIT,
+    strengthen_during: int = DEFAULT_STRENGTHEN_DURING,
+    rtol: float = DEFAULT_RTOL,
+    progress: Callable[[int, int], None] | None = None,
+    deadline: float | None = None,
+    max_nodes: int | None = None,
+    on_survivor: Callable[[list[str]], None] | None = None,
+    local_frame: bool = True,
+    quantum_s: float | None = DEFAULT_QUANTUM_S,
+    quantum_nodes: int | None = None,
+    on_result: Callable[[SubtreeResult], None] | None = None,
+) -> Solution:
+    """:func:`~cuikslam.hypotheses.solve_unknown` with its subtrees explored on ``client``'s
+    workers (a :class:`distributed.Client`); the same parameters, and:
+
+    Parameters
+    ----------
+    client : distributed.Client
+        The cluster.
+    quantum_s, quantum_nodes : float or int, optional
+        A task returns its pending subtrees after this many seconds or node expansions;
+        they are submitted again, split among idle workers.
+    on_result : callable, optional
+        Called with each task's result as it arrives (for tests and benchmarks).
+
+    Returns
+    -------
+    Solution
+        As :func:`~cuikslam.hypotheses.solve_unknown`'s; ``statistics`` also holds
+        ``tasks``, ``resubmitted`` (tasks lost with a worker and run again),
+        ``lost_on_replay`` and ``worker_cpu_s``; ``peak_frontier`` is the largest of
+        any task.
+    """
+    start = time.perf_counter()
+    ensure_round_to_nearest()
+    consistency = resolve_level(consistency, len(log.pose_ids))
+    explorer = Explorer(build_problem(log), rtol, consistency, strengthen_during, local_frame)
+    explorer.deadline = deadline
+    messages: list[str] = []
+    root = explorer.root()
+    tally = _Tally(explorer, on_survivor)
+    keep = max(1, max_hypotheses)
+    run = _Run(explorer, deadline, max_nodes)
+    found: list[Node] = []
+    if root is not None:
+        slots = max(1, sum(client.nthreads().values()))
+        prefixes = run.split(root, SPLIT_PER_SLOT * slots)
+        options = TaskOptions(
+            key=uuid.uuid4().hex, consistency=consistency, rtol=rtol,
+            strengthen_during=strengthen_during, local_frame=local_frame, keep=keep,
+            all_survivors=on_survivor is not None, quantum_s=quantum_s,
+            deadline=None if deadline is None else time.time() + (deadline - start),
+        )  # fmt: skip
+        results = run.on_cluster(
+            client, log, prefixes, options, slots, quantum_nodes, progress, on_result
+        )
+        found = _merge(explorer, root, tally, results, keep)
+    stats = explorer.stats
+    stats.explored_fraction = min(1.0, run.done)
+    solution = finish_search(
+        log, explorer, tally, found, run.unexplored(), run.stop_reason(), consistency,
+        strengthen_limit, progress, start, messages,
+    )  # fmt: skip
+    solution.statistics.update(
+        tasks=run.tasks, resubmitted=run.resubmitted, lost_on_replay=run.lost_on_replay,
+        worker_cpu_s=run.cpu_s,
+    )  # fmt: skip
+    return solution
+
+
+class _Run:
+    """The client's side of one search: splitting, submitting, budgets, the account."""
+
+    def __init__(self, explorer: Explorer, deadline: float | None, max_nodes: int | None):
+        self.explorer = explorer
+        self.deadline = deadline
+        self.max_nodes = max_nodes
+        self.done = 0.0
+        self.expanded = 0
+        self.pending: deque[list[tuple[int, ...]]] = deque()
+        self.left: list[tuple[int, ...]] = []
+        """Prefixes a budget stop leaves unexplored."""
+        self.tasks = self.resubmitted = self.lost_on_replay = 0
+        self.cpu_s = 0.0
+        self._budget_hit: str | None = None
+
+    def split(self, root: Node, target: int) -> list[tuple[int, ...]]:
+        """Expand the tree breadth first until ``target`` nodes wait; their prefixes."""
+        n = len(self.explorer.problem.decisions)
+        frontier, leaves = deque([root]), []
+        while frontier and len(frontier) + len(leaves) < target:
+            if self._exhausted():
+                break
+            node = frontier.popleft()
+            if node.depth == n:
+                leaves.append(node)
+                continue
+            kids, options = self.explorer.children(node)
+            self.expanded += 1
+            self.done += node.share * (options - len(kids)) / options
+            frontier.extend(kids)
+        return sorted(tuple(node.decisions()) for node in [*frontier, *leaves])
+
+    def _exhausted(self) -> bool:
+        if self.deadline is not None and time.perf_counter() > self.deadline:
+            self._budget_hit = "time budget"
+        elif self.max_nodes is not None and self.expanded >= self.max_nodes:
+            self._budget_hit = "node budget"
+        return self._budget_hit is not None
+
+    def on_cluster(
+        self,
+        client: Any,
+        log: Log,
+        prefixes: list[tuple[int, ...]],
+        options: TaskOptions,
+        slots: int,
+        quantum_nodes: int | None,
+        progress: Callable[[int, int], None] | None,
+        on_result: Callable[[SubtreeResult], None] | None,
+    ) -> list[SubtreeResult]:
+        from distributed import as_completed
+        from distributed.scheduler import KilledWorker
+
+        log_future = client.scatter(log, broadcast=True)
+        self.pending.extend([p] for p in prefixes)
+        results: list[SubtreeResult] = []
+        running = as_completed()
+        batches: dict[Any, tuple[list[tuple[int, ...]], int | None]] = {}
+        allotted = 0
+
+        def submit() -> None:
+            nonlocal allotted
+            while self.pending and len(batches) < 2 * slots and not self._exhausted():
+                allowance = quantum_nodes
+                if self.max_nodes is not None:
+                    spare = self.max_nodes - self.expanded - allotted
+                    if spare <= 0:
+                        break
+                    allowance = spare if allowance is None else min(allowance, spare)
+                    allotted += allowance
+                batch = self.pending.popleft()
+                future = client.submit(
+                    explore_prefixes, log_future, batch, options, allowance, pure=False
+                )
+                batches[future] = (batch, allowance)
+                running.add(future)
+                self.tasks += 1
+
+        submit()
+        for future in running:
+            batch, allowance = batches.pop(future)
+            if self.max_nodes is not None:
+                allotted -= allowance
+            try:
+                result = future.result()
+            except KilledWorker:  # Dask gave up on it after several lost workers: again
+                self.resubmitted += 1
+                self.pending.appendleft(batch)
+                submit()
+                continue
+            results.append(result)
+            self._account(result, slots - len(batches))
+            if on_result is not None:
+                on_result(result)
+            if progress is not None:
+                progress(int(1000 * min(1.0, self.done)), 1000)
+            submit()
+            if not batches and self.pending and self._exhausted():
+                break
+        for batch in self.pending:
+            self.left.extend(batch)
+        self.pending.clear()
+        return results
+
+    def _account(self, result: SubtreeResult, idle: int) -> None:
+        """Count a task's work; its pending prefixes wait, split among idle workers."""
+        self.done += result.done
+        self.expanded += result.expanded
+        self.lost_on_replay += result.lost_on_replay
+        self.cpu_s += result.cpu_s
+        todo = sorted(result.unexplored)
+        if not todo:
+            return
+        chunks = max(1, min(len(todo), idle + 1 if not self.pending else 1))
+        chunks = max(chunks, math.ceil(len(todo) / MAX_BATCH))
+        self.pending.extend(todo[i::chunks] for i in range(chunks))
+
+    def unexplored(self) -> list[list[int]]:
+        """The prefixes left, the next one (depth first) last."""
+        return [list(p) for p in sorted(self.left, reverse=True)]
+
+    def stop_reason(self) -> str | None:
+        if not self.left:
+            return None
+        return self._budget_hit or "time budget"
+
+
+def _merge(
+    explorer: Explorer, root: Node, tally: _Tally, results: list[SubtreeResult], keep: int
+) -> list[Node]:
+    """Fold the tasks' results into ``explorer.stats`` and ``tally`` as one depth-first
+    search would; return the best-ranked survivors as nodes of ``explorer``."""
+    stats = explorer.stats
+    for result in results:
+        for key, value in result.counts.items():
+            setattr(stats, key, getattr(stats, key) + value)
+        stats.survivors += result.n_survivors
+        stats.peak_frontier = max(stats.peak_frontier, result.peak_frontier)
+        tally.add_boxes(result.hull_lo, result.hull_hi)
+    rows = [r.survivors for r in results if len(r.survivors)]
+    if rows:
+        decided = np.concatenate(rows)
+        for i in np.lexsort(decided.T[::-1]):
+            tally.add_assignment(decided[i].tolist())
+    best = sorted((b for r in results for b in r.best), key=lambda b: (b[0], b[1]))[:keep]
+    # The best are rebuilt here, outside the search's counts.
+    saved, applications = explorer.stats, explorer.graph.applications
+    explorer.stats = SearchStatistics()
+    nodes = replay_all(explorer, root, sorted(b[1] for b in best))
+    explorer.stats, explorer.graph.applications = saved, applications
+    by_decisions = {tuple(n.decisions()): n for n in nodes if n is not None}
+    return [by_decisions[b[1]] for b in best if b[1] in by_decisions]
+
+
+# ------------------------------------------------------------------------- clusters
+def _distributed() -> Any:
+    try:
+        import distributed
+    except ImportError:
+        raise DaskMissingError(INSTALL_HINT) from None
+    return distributed
+
+
+def _warm_worker() -> float:
+    from cuikslam.solver import warm_up
+
+    return warm_up(True)
+
+
+@contextmanager
+def dask_client(
+    workers: int | None = None, scheduler: str | None = None, processes: bool = True
+) -> Iterator[Any]:
+    """A :class:`distributed.Client`: of the cluster at ``scheduler``, or of a local
+    cluster of ``workers`` single-threaded workers (processes, or threads of this process
+    with ``processes=False``), closed on exit. Every worker loads the compiled kernels
+    first. Raises :class:`DaskMissingError` without Dask."""
+    distributed = _distributed()
+    cluster = None
+    if scheduler is not None:
+        client = distributed.Client(scheduler)
+    else:
+        cluster = distributed.LocalCluster(
+            n_workers=workers or 1, threads_per_worker=1, processes=processes,
+            dashboard_address=None,
+        )  # fmt: skip
+        client = distributed.Client(cluster)
+    try:
+        client.run(_warm_worker)
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def solve_batch(logs: Sequence[Log], client: Any, **options: Any) -> list[Solution]:
+    """Solve every log of ``logs`` on ``client``'s workers, one task per log.
+
+    Parameters
+    ----------
+    logs : sequence of Log
+        The logs.
+    client : distributed.Client
+        The cluster (see :func:`dask_client`).
+    **options
+        Fields of :class:`~cuikslam.options.SolveOptions`, for every log.
+
+    Returns
+    -------
+    list of Solution
+        One per log, in the order of ``logs``.
+    """
+    from cuikslam.solver import solve
+
+    futures = [client.submit(solve, log, pure=False, **options) for log in logs]
+    return client.gather(futures)
