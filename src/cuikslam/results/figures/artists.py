@@ -1,9 +1,5 @@
-"""Drawing primitives of the figures: colours, rectangles (dashed when clipped), the truth's
-markers, legends, the finish of an axes.
-
-Part of :mod:`cuikslam.results.figures` (see its docstring for the drawing conventions).
-Matplotlib is imported inside the functions only.
-"""
+"""Drawing primitives shared by the layers of :mod:`cuikslam.results.figures`: colours,
+rectangles (dashed when clipped), the truth's markers, legends, the finish of an axes."""
 
 from __future__ import annotations
 

@@ -1,9 +1,6 @@
-"""The axes layer of the figures: functions that draw into a Matplotlib ``Axes`` you own,
-so that they compose with your own plots (and with Codac or GTSAM figures).
-
-Part of :mod:`cuikslam.results.figures` (see its docstring for the drawing conventions).
-Matplotlib is imported inside the functions only.
-"""
+"""The axes layer of :mod:`cuikslam.results.figures` (whose docstring states the drawing
+conventions): functions that draw into a Matplotlib ``Axes`` you own, so that they compose
+with your own plots (and with Codac or GTSAM figures)."""
 
 from __future__ import annotations
 

@@ -1,8 +1,6 @@
-"""The figure layer: a whole figure of a solve's result, and writing it atomically.
-
-Part of :mod:`cuikslam.results.figures` (see its docstring for the drawing conventions).
-Matplotlib is imported inside the functions only.
-"""
+"""The figure layer of :mod:`cuikslam.results.figures`: a whole figure of a solve's
+result (one panel, or small multiples), and writing it atomically; pyplot is loaded when a
+figure is made, never at import."""
 
 from __future__ import annotations
 
