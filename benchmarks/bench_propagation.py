@@ -39,7 +39,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))  # for tests.reference
 
 from cuikslam.graph.kinematic_graph import KinematicGraph  # noqa: E402
-from cuikslam.interval.angles import angle_in  # noqa: E402
+from cuikslam.interval.angles import angle_in, wrap_angle  # noqa: E402
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, Status, propagate  # noqa: E402
 
 TURN_BOUND = 0.02
@@ -120,7 +120,7 @@ def loop_world(
             rho = math.hypot(dx, dy)
             if rho > MAX_RANGE:
                 continue
-            bearing = math.remainder(math.atan2(dy, dx) - poses[i, 2], 2.0 * math.pi)
+            bearing = wrap_angle(math.atan2(dy, dx) - poses[i, 2])
             graph.add_observation(
                 i,
                 f"L{m}",

@@ -18,6 +18,7 @@ from cuikslam.interval.angles import (
     angle_excess,
     angle_in,
     out_of_view_arc,
+    wrap_angle,
 )
 
 finite = st.floats(-1e4, 1e4, allow_nan=False)
@@ -81,3 +82,16 @@ def test_the_out_of_view_arcs_enclose_and_lie_inside_the_unseen_bearings(fov: fl
 def test_a_sensor_that_sees_all_round_has_no_out_of_view_arc() -> None:
     assert out_of_view_arc(2 * math.pi) is None
     assert out_of_view_arc(7.0, inner=True) is None
+
+
+@given(angle=st.floats(-1e3, 1e3))
+def test_wrap_angle_lands_in_the_half_open_turn(angle: float) -> None:
+    wrapped = wrap_angle(angle)
+    assert -math.pi < wrapped <= math.pi
+    turns = (angle - wrapped) / TWO_PI_LO
+    assert abs(turns - round(turns)) < 1e-9
+
+
+def test_wrap_angle_sends_minus_pi_to_pi() -> None:
+    assert wrap_angle(-math.pi) == math.pi
+    assert wrap_angle(0.0) == 0.0

@@ -39,6 +39,7 @@ from cuikslam._atomic import atomic_write_text
 from cuikslam.datasets.mrclam import MrclamBounds, read_mrclam
 from cuikslam.datasets.mrclam_files import MrclamTables, read_mrclam_tables
 from cuikslam.errors import InputFileError
+from cuikslam.interval.angles import wrap_angle
 from cuikslam.results.measurement_check import Outside, check_log
 
 __all__ = [
@@ -84,7 +85,7 @@ def _sighting_errors(
         readings.append(obs.range[0])
         ranges.append(obs.range[0] - math.hypot(q[0] - p[0], q[1] - p[1]))
         direction = math.atan2(q[1] - p[1], q[0] - p[0]) - p[2]
-        bearings.append(math.remainder(obs.bearing[0] - direction, 2 * math.pi))
+        bearings.append(wrap_angle(obs.bearing[0] - direction))
     return np.array(readings), np.array(ranges), np.array(bearings)
 
 

@@ -8,6 +8,7 @@ what the rest of the library asks of an angle in plain Python, in one place:
   (the truth checks of results and benchmarks);
 - :func:`angle_excess`: how far an angle lies outside an interval, modulo 2π (a
   diagnostic, in floats);
+- :func:`wrap_angle`: a float angle's representative in (-π, π] (simulation, data);
 - :func:`out_of_view_arc`: the bearings a sensor of a given field of view cannot see.
 
 It imports no compiled code, so reading results stays light.
@@ -41,6 +42,7 @@ __all__ = [
     "angle_excess",
     "angle_in",
     "out_of_view_arc",
+    "wrap_angle",
 ]
 
 PI_LO = math.pi  # the double nearest pi lies below pi
@@ -131,6 +133,13 @@ def angle_excess(value: float, lo: float, hi: float) -> float:
     if shifted <= hi:
         return 0.0
     return min(shifted - hi, lo + 2 * math.pi - shifted)
+
+
+def wrap_angle(angle: float) -> float:
+    """``angle`` wrapped to (−π, π] (in floats: for simulated and recorded values, not for
+    bounds)."""
+    wrapped = math.remainder(angle, 2.0 * math.pi)
+    return math.pi if wrapped == -math.pi else wrapped
 
 
 def out_of_view_arc(fov: float, *, inner: bool = False) -> tuple[float, float] | None:

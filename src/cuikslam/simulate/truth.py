@@ -40,6 +40,7 @@ import numpy as np
 
 from cuikslam._atomic import atomic_write_text
 from cuikslam.errors import InputFileError
+from cuikslam.interval.angles import wrap_angle
 from cuikslam.log.records import Bounds
 
 __all__ = [
@@ -115,12 +116,6 @@ class GroundTruth:
         else:
             x, y = (Fraction(float(v)) for v in self.landmarks_xy[j])
         return x, y
-
-
-def wrap_angle(angle: float) -> float:
-    """``angle`` wrapped to (−π, π]."""
-    wrapped = math.remainder(angle, 2.0 * math.pi)
-    return math.pi if wrapped == -math.pi else wrapped
 
 
 def noisy_interval(
