@@ -14,6 +14,7 @@ from cuikslam._atomic import atomic_write_text
 from cuikslam.cli._common import CommandError, check_figure_path, check_output_path, write_output
 from cuikslam.errors import InputFileError
 from cuikslam.log.reader import read_log_file
+from cuikslam.results.association import named_landmarks
 from cuikslam.results.evaluate import Evaluation, evaluate, evaluation_to_json
 from cuikslam.results.io import read_result_file
 from cuikslam.simulate.truth import read_truth_file
@@ -38,7 +39,7 @@ def _named_ids(log_path: str | None, result_log: str, notes: list[str]) -> set[s
             raise
         notes.append(f"the result's log {path} is unreadable: partitions compared without names")
         return set()
-    return {r.landmark for r in log.records if getattr(r, "landmark", None) is not None}
+    return named_landmarks(log)
 
 
 def _pct(part: int, whole: int) -> str:
