@@ -98,6 +98,7 @@ def solve(
     *,
     progress: ProgressCallback | None = None,
     on_survivor: Callable[[list[str]], None] | None = None,
+    search: Callable[..., Solution] | None = None,
     **overrides: Any,
 ) -> Solution:
     """Solve ``log`` and return every hypothesis that narrowing could not refute.
@@ -122,6 +123,11 @@ def solve(
         With unknown correspondence, called with the assignment of every survivor of the
         search as it is found (see :func:`~cuikslam.hypotheses.solve_unknown`): all of
         them, however many are reported.
+    search : callable, optional
+        Runs the correspondence search in place of
+        :func:`~cuikslam.hypotheses.solve_unknown` (same parameters), e.g. on a cluster:
+        ``functools.partial(search_distributed, client=client)``
+        (:mod:`cuikslam.hypotheses.distributed`).
     **overrides
         Fields of :class:`~cuikslam.options.SolveOptions` (``consistency``,
         ``max_hypotheses``, ``strengthen_limit``, ``strengthen_during``,
@@ -153,7 +159,7 @@ def solve(
     n_poses = len(log.pose_ids)
     consistency = resolve_level(options.consistency.value, n_poses)
     if log.has_unknown_correspondence:
-        solution = solve_unknown(
+        solution = (search or solve_unknown)(
             log,
             consistency=consistency,
             max_hypotheses=options.max_hypotheses,

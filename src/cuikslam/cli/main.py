@@ -13,6 +13,7 @@ import os
 import sys
 import time
 from collections.abc import Callable, Sequence
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -85,8 +86,15 @@ def _cmd_paper(args: argparse.Namespace) -> int:
 def _cmd_solve(args: argparse.Namespace) -> int:
     from cuikslam.cli.solve import run_solve
 
-    return run_solve(
-        log_path=args.log,
+    if len(args.log) > 1 or args.workers is not None or args.scheduler is not None:
+        from cuikslam.cli.cluster import run_solve_cluster
+
+        run = partial(
+            run_solve_cluster, log_paths=args.log, workers=args.workers, scheduler=args.scheduler
+        )
+    else:
+        run = partial(run_solve, log_path=args.log[0])
+    return run(
         json_path=args.json,
         csv_path=args.csv,
         truth_path=args.truth,
@@ -371,9 +379,26 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=_cmd_paper)
 
     p = sub.add_parser("solve", help="solve a JSON Lines log", description="Solve a log file.")
-    p.add_argument("log", help="the log (JSON Lines, see docs/log-format.md)")
-    p.add_argument("--json", help="write the result JSON here")
-    p.add_argument("--csv", help="write the boxes as CSV here")
+    p.add_argument(
+        "log",
+        nargs="+",
+        help="the log (JSON Lines, see docs/log-format.md); several logs are solved one "
+        "after the other, or in parallel with --workers/--scheduler",
+    )
+    p.add_argument("--json", help="write the result JSON here (with several logs: a folder)")
+    p.add_argument("--csv", help="write the boxes as CSV here (with several logs: a folder)")
+    p.add_argument(
+        "--workers",
+        type=_positive_int,
+        metavar="N",
+        help="run on a local Dask cluster of N worker processes: one log's correspondence "
+        'search, or several logs at once (needs pip install "cuikslam[distributed]")',
+    )
+    p.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="run on the Dask cluster whose scheduler is at ADDRESS (e.g. tcp://host:8786)",
+    )
     p.add_argument("--truth", help="ground-truth JSON: report whether every box contains it")
     p.add_argument("-q", "--quiet", action="store_true", help="print no table")
     p.add_argument(

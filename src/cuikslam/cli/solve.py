@@ -127,6 +127,7 @@ def run_solve(
     time_budget: float | str | None = "auto",
     started: float | None = None,
     survivors_path: str | None = None,
+    search: Callable[..., Solution] | None = None,
 ) -> int:
     # Everything that can be refused is checked before the solve (and before the solver,
     # slow to import, is loaded): a bad log or output path fails fast and writes nothing.
@@ -151,6 +152,7 @@ def run_solve(
             progress=progress,
             time_budget=time_budget,
             on_survivor=on_survivor,
+            search=search,
         )
     if json_path:
         write_output(json_path, lambda: write_result_file(solution, json_path))

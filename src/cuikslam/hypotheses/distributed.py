@@ -12,8 +12,8 @@ merges the results; :func:`~.search.finish_search` then does what follows the se
 exactly as in one process. A task lost with its worker is run again by Dask (or
 resubmitted here): a subtree is counted once its task's result has arrived, never before.
 
-Dask is imported only here, and only when a cluster is asked for
-(``pip install "cuikslam[distributed]"``).
+Dask is imported only when a search runs on a cluster; :mod:`cuikslam.cluster` makes
+the client (``pip install "cuikslam[distributed]"``).
 """
 
 from __future__ import annotations
@@ -23,8 +23,7 @@ import threading
 import time
 import uuid
 from collections import deque
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -52,17 +51,12 @@ from cuikslam.narrowing.propagation import DEFAULT_RTOL
 from cuikslam.results.solution import Solution
 
 __all__ = [
-    "INSTALL_HINT",
-    "DaskMissingError",
     "SubtreeResult",
     "TaskOptions",
-    "dask_client",
     "explore_prefixes",
     "search_distributed",
-    "solve_batch",
 ]
 
-INSTALL_HINT = 'this option needs Dask: pip install "cuikslam[distributed]"'
 DEFAULT_QUANTUM_S = 1.0
 """Seconds a task explores before it returns its pending subtrees (to be split again)."""
 SPLIT_PER_SLOT = 3
@@ -70,10 +64,6 @@ SPLIT_PER_SLOT = 3
 MAX_BATCH = 8
 """Prefixes one task explores at most (they share the replay of their common decisions)."""
 _NOT_SUMMED = {"peak_frontier", "explored_fraction", "survivors", "unexplored_subtrees"}
-
-
-class DaskMissingError(ImportError):
-    """A cluster was asked for and Dask is not installed."""
 
 
 @dataclass(frozen=True)
@@ -249,6 +239,7 @@ def search_distributed(
     quantum_s: float | None = DEFAULT_QUANTUM_S,
     quantum_nodes: int | None = None,
     on_result: Callable[[SubtreeResult], None] | None = None,
+    on_unexplored: Callable[[list[list[int]]], None] | None = None,
 ) -> Solution:
     """:func:`~cuikslam.hypotheses.solve_unknown` with its subtrees explored on ``client``'s
     workers (a :class:`distributed.Client`); the same parameters, and:
@@ -262,6 +253,8 @@ def search_distributed(
         they are submitted again, split among idle workers.
     on_result : callable, optional
         Called with each task's result as it arrives (for tests and benchmarks).
+    on_unexplored : callable, optional
+        Called with every prefix a budget stop left unexplored (the message names five).
 
     Returns
     -------
@@ -297,6 +290,8 @@ def search_distributed(
         found = _merge(explorer, root, tally, results, keep)
     stats = explorer.stats
     stats.explored_fraction = min(1.0, run.done)
+    if on_unexplored is not None:
+        on_unexplored(run.unexplored())
     solution = finish_search(
         log, explorer, tally, found, run.unexplored(), run.stop_reason(), consistency,
         strengthen_limit, progress, start, messages,
@@ -461,68 +456,3 @@ def _merge(
     explorer.stats, explorer.graph.applications = saved, applications
     by_decisions = {tuple(n.decisions()): n for n in nodes if n is not None}
     return [by_decisions[b[1]] for b in best if b[1] in by_decisions]
-
-
-# ------------------------------------------------------------------------- clusters
-def _distributed() -> Any:
-    try:
-        import distributed
-    except ImportError:
-        raise DaskMissingError(INSTALL_HINT) from None
-    return distributed
-
-
-def _warm_worker() -> float:
-    from cuikslam.solver import warm_up
-
-    return warm_up(True)
-
-
-@contextmanager
-def dask_client(
-    workers: int | None = None, scheduler: str | None = None, processes: bool = True
-) -> Iterator[Any]:
-    """A :class:`distributed.Client`: of the cluster at ``scheduler``, or of a local
-    cluster of ``workers`` single-threaded workers (processes, or threads of this process
-    with ``processes=False``), closed on exit. Every worker loads the compiled kernels
-    first. Raises :class:`DaskMissingError` without Dask."""
-    distributed = _distributed()
-    cluster = None
-    if scheduler is not None:
-        client = distributed.Client(scheduler)
-    else:
-        cluster = distributed.LocalCluster(
-            n_workers=workers or 1, threads_per_worker=1, processes=processes,
-            dashboard_address=None,
-        )  # fmt: skip
-        client = distributed.Client(cluster)
-    try:
-        client.run(_warm_worker)
-        yield client
-    finally:
-        client.close()
-        if cluster is not None:
-            cluster.close()
-
-
-def solve_batch(logs: Sequence[Log], client: Any, **options: Any) -> list[Solution]:
-    """Solve every log of ``logs`` on ``client``'s workers, one task per log.
-
-    Parameters
-    ----------
-    logs : sequence of Log
-        The logs.
-    client : distributed.Client
-        The cluster (see :func:`dask_client`).
-    **options
-        Fields of :class:`~cuikslam.options.SolveOptions`, for every log.
-
-    Returns
-    -------
-    list of Solution
-        One per log, in the order of ``logs``.
-    """
-    from cuikslam.solver import solve
-
-    futures = [client.submit(solve, log, pure=False, **options) for log in logs]
-    return client.gather(futures)

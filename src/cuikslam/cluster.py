@@ -1,0 +1,112 @@
+"""Dask clusters for cuikslam: a client (a local cluster or an existing one), and a batch
+of logs solved one per task.
+
+Dask is optional (``pip install "cuikslam[distributed]"``) and imported only when a
+cluster is asked for; without it :func:`dask_client` raises :class:`DaskMissingError`,
+whose message says what to install. A correspondence search on the cluster is
+:func:`cuikslam.hypotheses.distributed.search_distributed`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
+from typing import TYPE_CHECKING, Any
+
+from cuikslam.options import SolveOptions
+
+if TYPE_CHECKING:
+    from cuikslam.log.records import Log
+    from cuikslam.results.solution import Solution
+
+__all__ = ["INSTALL_HINT", "DaskMissingError", "dask_client", "solve_batch"]
+
+INSTALL_HINT = 'needs Dask, which is not installed: pip install "cuikslam[distributed]"'
+
+
+class DaskMissingError(ImportError):
+    """A cluster was asked for and Dask is not installed."""
+
+
+def _distributed() -> Any:
+    try:
+        import distributed
+    except ImportError:
+        raise DaskMissingError(f"a Dask cluster {INSTALL_HINT}") from None
+    return distributed
+
+
+def _warm_worker() -> float:
+    from cuikslam.solver import warm_up
+
+    return warm_up(True)
+
+
+@contextmanager
+def dask_client(
+    workers: int | None = None, scheduler: str | None = None, processes: bool = True
+) -> Iterator[Any]:
+    """A :class:`distributed.Client`: of the cluster at ``scheduler``, or of a local
+    cluster of ``workers`` single-threaded workers (processes, or threads of this process
+    with ``processes=False``), closed on exit. Every worker loads the compiled kernels
+    first. Raises :class:`DaskMissingError` without Dask."""
+    distributed = _distributed()
+    cluster = None
+    if scheduler is not None:
+        client = distributed.Client(scheduler)
+    else:
+        cluster = distributed.LocalCluster(
+            n_workers=workers or 1, threads_per_worker=1, processes=processes,
+            dashboard_address=":0",
+        )  # fmt: skip
+        client = distributed.Client(cluster)
+    try:
+        client.run(_warm_worker)
+        yield client
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def solve_batch(
+    logs: Sequence[Log],
+    client: Any,
+    options: SolveOptions | None = None,
+    time_budgets: Sequence[float | None] | None = None,
+    **overrides: Any,
+) -> list[Solution]:
+    """Solve every log of ``logs`` on ``client``'s workers, one task per log.
+
+    Parameters
+    ----------
+    logs : sequence of Log
+        The logs.
+    client : distributed.Client
+        The cluster (see :func:`dask_client`).
+    options : SolveOptions, optional
+        The options of every solve (see :func:`cuikslam.solver.solve`).
+    time_budgets : sequence of float or None, optional
+        Each log's ``time_budget``, in place of the options' one.
+    **overrides
+        Fields of :class:`~cuikslam.options.SolveOptions` replacing those of ``options``.
+
+    Returns
+    -------
+    list of Solution
+        One per log, in the order of ``logs``.
+
+    Examples
+    --------
+    >>> with dask_client(workers=2) as client:  # doctest: +SKIP
+    ...     solutions = solve_batch([log_a, log_b], client, consistency="hull")
+    """
+    from cuikslam.solver import solve
+
+    options = (options or SolveOptions()).replace(**overrides)
+    budgets = time_budgets if time_budgets is not None else [options.time_budget] * len(logs)
+    futures = [
+        client.submit(solve, log, options.replace(time_budget=budget), pure=False)
+        for log, budget in zip(logs, budgets, strict=True)
+    ]
+    return client.gather(futures)
