@@ -243,6 +243,26 @@ def test_class_priors_the_truth_meets_keep_it(
     check_search(world.with_class_priors(share, margin, extra), naming, "hull")
 
 
+OFFSETS = {"sensors": ("none",), "offsets": True}
+
+
+@ci(60)
+@given(world=worlds(**SMALL, **OFFSETS))
+def test_offset_worlds_measure_their_world_and_keep_their_truth(world: World) -> None:
+    """Sensors mounted off the robot's centre (one or two, a scan each): the logs are
+    valid, and the true correspondence given is never refuted."""
+    check_known(world, "hull")
+
+
+@pytest.mark.parametrize("naming", ["none", "mixed"])
+@ci(60)
+@given(world=worlds(**SMALL, **OFFSETS))
+def test_search_keeps_the_truth_with_sensor_offsets(world: World, naming: str) -> None:
+    """Unknown correspondence from offset sensors: each observation is seen from its
+    sensor's pose, and two scans of one pose may see the same landmark."""
+    check_search(world, naming, "hull")
+
+
 @pytest.mark.parametrize("naming", ["none", "mixed"])
 @pytest.mark.parametrize("level", ["lp", "lp-during"])
 @ci(25)

@@ -211,9 +211,21 @@ def test_lp_tightening_keeps_the_truth_of_relative_worlds(data):
     assert world.lost(lo, hi) == [], world.description
 
 
-def test_offsets_with_unknown_correspondence_are_refused_with_the_line():
-    from cuikslam.solver import solve
+def test_a_scan_per_sensor_offset_each_sees_distinct_landmarks():
+    """Two sensors on one pose make two scans: the search lets both see P0 (one scan
+    cannot see a landmark twice), from the sensor's pose, not the robot's centre."""
+    from cuikslam.hypotheses import solve_unknown
 
-    log = parse_log_lines([PRIOR, OFFSET_OBS.replace(', "landmark": "P0"', "")], path="o.jsonl")
-    with pytest.raises(LogFormatError, match=r"o\.jsonl:2: observation offsets are supported"):
-        solve(log, certify_limit=0)
+    front = OFFSET_OBS.replace(', "landmark": "P0"', "")
+    back = (
+        front.replace('"offset_x": [0.219, 0.219]', '"offset_x": [-0.3, -0.3]')
+        .replace('"range": [2.0, 2.1]', '"range": [2.5, 2.7]')
+        .replace('"bearing": [0.1, 0.2]', '"bearing": [0.05, 0.2]')
+    )  # what the front sensor sees, seen from 0.519 m further back
+    log = parse_log_lines([PRIOR, front, front, back], path="o.jsonl")
+    solution = solve_unknown(log, consistency="hull")
+    assert solution.complete
+    # the two front observations are one scan: two landmarks; the back one may be either
+    partitions = {tuple(h.assignment) for h in solution.hypotheses}
+    assert all(a[0] != a[1] for a in partitions)
+    assert any(a[2] in (a[0], a[1]) for a in partitions)

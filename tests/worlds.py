@@ -88,6 +88,9 @@ def wrap(angle: mpmath.mpf) -> mpmath.mpf:
 # --- the truth --------------------------------------------------------------------------
 
 
+Offset = tuple[mpmath.mpf, mpmath.mpf, mpmath.mpf]
+
+
 @dataclass
 class Truth:
     """A true world: poses ``id -> (x, y, θ)``, landmarks ``id -> (x, y)`` (reference reals)."""
@@ -100,6 +103,8 @@ class Truth:
     resolution: mpmath.mpf = field(default_factory=lambda: MP.mpf(2) ** -1200)
     """Relative accuracy of the values (derived poses are irrational): only
     :func:`log_violations` uses it, to check the test data, never a solver's box."""
+    offsets: list[Offset | None] = field(default_factory=list)
+    """The true sensor offset of each observation (record order), when it has one."""
 
     @classmethod
     def from_file(cls, path: Path) -> Truth:
@@ -123,9 +128,16 @@ class Truth:
             "obs_truth": list(self.assignment),
         }
 
-    def range_bearing(self, pose: int, landmark: str) -> tuple[mpmath.mpf, mpmath.mpf]:
-        """The true distance and bearing (wrapped to [-π, π)) of ``landmark`` from ``pose``."""
+    def range_bearing(
+        self, pose: int, landmark: str, offset: Offset | None = None
+    ) -> tuple[mpmath.mpf, mpmath.mpf]:
+        """The true distance and bearing (wrapped to [-π, π)) of ``landmark`` from ``pose``,
+        or from its sensor at ``offset`` ``(dx, dy, dθ)`` in the frame of the pose."""
         x, y, theta = self.poses[pose]
+        if offset is not None:
+            dx, dy, dt = offset
+            c, s = MP.cos(theta), MP.sin(theta)
+            x, y, theta = x + dx * c - dy * s, y + dx * s + dy * c, theta + dt
         lx, ly = self.landmarks[landmark]
         return MP.hypot(lx - x, ly - y), wrap(MP.atan2(ly - y, lx - x) - theta)
 
@@ -213,7 +225,7 @@ def log_violations(log: Log, truth: Truth) -> list[str]:
         return v + k * TWO_PI <= mpf(hi) + slack(v) * (1 + abs(k))
 
     observations = 0
-    seen: dict[int, set[str]] = {}
+    seen: dict[object, set[str]] = {}
     for r in log.records:
         if isinstance(r, PosePrior):
             x, y, t = truth.poses[r.pose]
@@ -230,12 +242,20 @@ def log_violations(log: Log, truth: Truth) -> list[str]:
                 bad.append(f"line {r.line}: the true move is not turn-then-drive ({drift})")
         elif isinstance(r, Observation):
             lid = truth.assignment[observations]
+            offset = truth.offsets[observations] if truth.offsets else None
             observations += 1
-            seen.setdefault(r.pose, set())
-            if lid in seen[r.pose]:
-                bad.append(f"line {r.line}: pose {r.pose} sees {lid} twice")
-            seen[r.pose].add(lid)
-            d, b = truth.range_bearing(r.pose, lid)
+            if (offset is None) != (r.offset is None):
+                bad.append(f"line {r.line}: offset {r.offset}, truly {offset}")
+            elif offset is not None and not all(
+                within(*bounds, v) for bounds, v in zip(r.offset, offset, strict=True)
+            ):
+                bad.append(f"line {r.line}: the offset misses the sensor's")
+            scan = r.pose if r.offset is None else (r.pose, r.offset)
+            seen.setdefault(scan, set())
+            if lid in seen[scan]:
+                bad.append(f"line {r.line}: scan {scan} sees {lid} twice")
+            seen[scan].add(lid)
+            d, b = truth.range_bearing(r.pose, lid, offset)
             if r.landmark is not None and r.landmark != lid:
                 bad.append(f"line {r.line}: named {r.landmark}, truly {lid}")
             if r.landmark_class != truth.classes[lid]:
@@ -434,8 +454,13 @@ def worlds(
     sensors: Sequence[str] = SENSOR_KINDS,
     max_observations: int = 60,
     named_fractions: Sequence[float] = (0.0, 0.25, 0.5, 0.8, 1.0),
+    offsets: bool = False,
 ) -> World:
     """A random true world and its log (see the module docstring).
+
+    With ``offsets`` (and no sensor record, which cannot be combined with them), every
+    observation is made from one of one or two sensors mounted off the robot's centre:
+    a pose then has one scan per sensor, and two scans may see the same landmark.
 
     Structure (sizes, sensor kind, error bounds) is drawn directly; the many numbers of a
     world come from a Hypothesis-driven ``random.Random``, so they shrink too.
@@ -447,6 +472,14 @@ def worlds(
     n_landmarks = draw(st.integers(*landmarks))
     n_classes = draw(st.integers(1, 3))
     kind = draw(st.sampled_from(list(sensors)))
+    mounts: list[Offset] = []
+    if offsets:
+        assert kind == "none", "sensor offsets cannot be combined with a sensor record"
+        for _ in range(draw(st.integers(1, 2))):
+            dx = _real(rng.choice([0.219, rng.uniform(-0.5, 0.5)]))
+            dy = _real(rng.choice([0.0, rng.uniform(-0.3, 0.3)]))
+            dt = _real(rng.choice([0.0, 0.0, rng.uniform(-3.2, 3.2)]))
+            mounts.append((mpf(dx), mpf(dy), mpf(dt)))
     errors = draw(
         st.fixed_dictionaries(
             {
@@ -541,20 +574,35 @@ def worlds(
     )
 
     # what each pose observes: with a sensor, exactly what its rules require
-    scans: dict[int, list[str]] = {}
+    scans: dict[int, list[tuple[str, int | None]]] = {}
     for pose in pose_ids:
         if sensor is not None:
             view, gap = sensor.in_view(truth, pose)
             assume(gap > EDGE)
-            scans[pose] = sorted(view)
+            scan = [(lid, None) for lid in sorted(view)]
+        elif mounts:  # one scan per sensor, made from where the sensor is
+            scan = [
+                (lid, m)
+                for m, mount in enumerate(mounts)
+                for lid in truth.landmarks
+                if truth.range_bearing(pose, lid, mount)[0] < 6 and rng.random() < 0.5
+            ]
         else:
             near = [lid for lid in truth.landmarks if truth.range_bearing(pose, lid)[0] < 6]
-            scans[pose] = [lid for lid in near if rng.random() < 0.5]
-        rng.shuffle(scans[pose])
+            scan = [(lid, None) for lid in near if rng.random() < 0.5]
+        rng.shuffle(scan)
+        scans[pose] = scan
     assume(sum(map(len, scans.values())) <= max_observations)
 
     # the records, in time order
     records: list[dict[str, Any]] = []
+    mount_records = [
+        {
+            f"offset_{axis}": _interval(rng, v, errors["distance"] if axis != "theta" else 0.01)
+            for axis, v in zip(("x", "y", "theta"), mount, strict=True)
+        }
+        for mount in mounts
+    ]
     x, y, t = true_poses[pose_ids[0]]
     records.append(
         {
@@ -589,10 +637,14 @@ def worlds(
                         "theta": _angle_interval(rng, t, 4.0),
                     }
                 )
-        for lid in scans[pose]:
-            d, b = truth.range_bearing(pose, lid)
+        for lid, m in scans[pose]:
+            mount = None if m is None else mounts[m]
+            d, b = truth.range_bearing(pose, lid, mount)
             which = rng.choice(["both", "both", "both", "both", "range", "bearing"])
             record: dict[str, Any] = {"type": "observation", "pose": pose, "class": classes[lid]}
+            if mount is not None:  # the same intervals for every observation of the sensor
+                record.update(mount_records[m])
+                truth.offsets.append(mount)
             if which != "bearing":
                 record["range"] = _interval(rng, d, errors["range"], non_negative=True)
             if which != "range":

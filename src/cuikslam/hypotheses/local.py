@@ -38,14 +38,27 @@ MAX_APPLICATIONS = 20_000
 class LocalCheck:
     """Refutes nodes whose window around a pose is inconsistent in that pose's frame."""
 
-    def __init__(self, pose_x: dict[int, int], n_vars: int, rtol: float, rounds: int) -> None:
-        order = list(pose_x)  # poses in the order the log reaches them
+    def __init__(
+        self,
+        pose_x: dict[int, int],
+        n_vars: int,
+        rtol: float,
+        rounds: int,
+        sensor_x: dict[int, list[int]] | None = None,
+    ) -> None:
+        """``pose_x``: x variable of each pose, in the order the log reaches them;
+        ``sensor_x``: x variables of each pose's sensor poses (offset observations), which
+        move with their pose and belong to its windows."""
+        sensors = sensor_x or {}
+        order = list(pose_x)
         self._window: dict[int, np.ndarray] = {}
         for i, pose in enumerate(order):
-            xs = [pose_x[q] for q in order[max(0, i - WINDOW_POSES + 1) : i + 1]]
+            xs = []
+            for q in order[max(0, i - WINDOW_POSES + 1) : i + 1]:
+                xs += [pose_x[q], *sensors.get(q, ())]
             self._window[pose] = np.array(xs, dtype=np.int64)
         self._is_pose = np.zeros(n_vars, dtype=np.bool_)
-        for x in pose_x.values():
+        for x in [*pose_x.values(), *(x for xs in sensors.values() for x in xs)]:
             self._is_pose[x : x + 3] = True
         self._in_window = np.zeros(n_vars, dtype=np.bool_)
         self._local_id = np.full(n_vars, -1, dtype=np.int64)

@@ -17,6 +17,7 @@ new landmarks cannot arise.
 from __future__ import annotations
 
 import math
+from collections.abc import Hashable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -41,7 +42,6 @@ from cuikslam.graph.encoding import (
 from cuikslam.interval._periodic import periodic_meet
 from cuikslam.interval._rounding import PI_HI
 from cuikslam.interval.angles import out_of_view_arc
-from cuikslam.log.errors import LogFormatError
 from cuikslam.log.records import (
     ClassPrior,
     LandmarkPrior,
@@ -74,6 +74,11 @@ class Decision:
     landmark_class: str
     completes_scan: bool
     """True when it is the last unlabelled observation of its pose."""
+    scan: Hashable = None
+    """Its scan, whose observations see distinct landmarks: the pose, or ``(pose,
+    offset)`` for an observation made from a sensor offset."""
+    sensor_x: int = -1
+    """x variable of the pose it is made from: the robot's, or its sensor's (offsets)."""
 
 
 @dataclass
@@ -90,8 +95,9 @@ class Problem:
     named_x: np.ndarray
     named_class: list[str]
     decisions: list[Decision]
-    seen_named: dict[int, set[int]]
-    """Pose -> numbers of the named landmarks its named observations see."""
+    seen_named: dict[Hashable, set[int]]
+    """Scan (see :attr:`Decision.scan`) -> numbers of the named landmarks its named
+    observations see."""
     named_assignment: dict[int, int]
     """Observation position -> landmark number, for observations that name their landmark."""
     first_seen: list[int]
@@ -102,6 +108,8 @@ class Problem:
     n_observations: int = 0
     class_priors: dict[str, ClassPrior] = field(default_factory=dict)
     """The user's priors on each class of landmarks (count, separation, region)."""
+    sensor_x: dict[int, list[int]] = field(default_factory=dict)
+    """Pose -> x variables of its sensors' poses (observations with an offset)."""
 
     @property
     def ranked_vars(self) -> np.ndarray:
@@ -158,13 +166,31 @@ def build_problem(log: Log) -> Problem:
     first_seen: list[int] = []
     rows: list[tuple[int, ...]] = []
     pending: list[tuple[int, Observation, int, int, int]] = []
-    seen_named: dict[int, set[int]] = {}
+    seen_named: dict[Hashable, set[int]] = {}
+    sensor_of: dict[tuple[int, tuple[tuple[float, float], ...]], int] = {}
+    sensor_x: dict[int, list[int]] = {}
     named_assignment: dict[int, int] = {}
 
     def pose(p: int) -> int:
         if p not in pose_x:
             pose_x[p] = b.new(_ANY, _ANY, _ANY)
         return pose_x[p]
+
+    def sensor(record: Observation) -> tuple[Hashable, int]:
+        """The scan of an observation and the x variable of the pose it is made from: with
+        an offset, the sensor's pose, tied to the robot's by a relative pose (one per
+        pose and offset, as in :meth:`KinematicGraph.add_observation`)."""
+        a = pose(record.pose)
+        if record.offset is None:
+            return record.pose, a
+        key = (record.pose, tuple((float(lo), float(hi)) for lo, hi in record.offset))
+        if key not in sensor_of:
+            o = b.new(*key[1], _ANY, _ANY, _ANY)
+            x = sensor_of[key] = o + 3
+            sensor_x.setdefault(record.pose, []).append(x)
+            rows.append((RELATIVE, a, a + 1, a + 2, x, x + 1, -1, o, o + 1))
+            rows.append((ROTATION, a, a + 1, a + 2, x, x + 1, x + 2, o + 2, -1))
+        return key, sensor_of[key]
 
     def landmark(name: str, cls: str, index: int) -> int:
         if name not in named:
@@ -196,29 +222,22 @@ def build_problem(log: Log) -> Problem:
             rows.append((RELATIVE, a, a + 1, a + 2, c, c + 1, -1, m, m + 1))
             rows.append((ROTATION, a, a + 1, a + 2, c, c + 1, c + 2, m + 2, -1))
         elif isinstance(record, Observation):
-            if record.offset is not None:
-                raise LogFormatError(
-                    log.path,
-                    record.line,
-                    "observation offsets are supported with known correspondence only "
-                    "(give every observation its landmark id)",
-                )
-            a = pose(record.pose)
+            scan, a = sensor(record)
             bearing = (-PI_HI, PI_HI) if record.bearing is None else record.bearing
             m = b.new(bearing, _length(record.range))
             if record.landmark is None:
                 slot = b.new(_ANY, _ANY)
                 rows.append((OBSERVATION, a, a + 1, a + 2, slot, slot + 1, -1, m, m + 1))
-                pending.append((index, record, position, m, slot))
+                pending.append((index, record, position, m, slot, scan, a))
             else:
                 n = landmark(record.landmark, record.landmark_class, index)
                 lx = named_x[n]
                 rows.append((OBSERVATION, a, a + 1, a + 2, lx, lx + 1, -1, m, m + 1))
-                seen_named.setdefault(record.pose, set()).add(n)
+                seen_named.setdefault(scan, set()).add(n)
                 named_assignment[position] = n
             position += 1
     last_decision: dict[int, int] = {}
-    for k, (_, record, _, _, _) in enumerate(pending):
+    for k, (_, record, *_) in enumerate(pending):
         last_decision[record.pose] = k
     decisions = [
         Decision(
@@ -231,8 +250,10 @@ def build_problem(log: Log) -> Problem:
             slot_x=slot,
             landmark_class=record.landmark_class,
             completes_scan=last_decision[record.pose] == k,
+            scan=scan,
+            sensor_x=sensor_x,
         )
-        for k, (index, record, pos, m, slot) in enumerate(pending)
+        for k, (index, record, pos, m, slot, scan, sensor_x) in enumerate(pending)
     ]
     problem = Problem(
         lo=np.zeros(0),
@@ -248,6 +269,7 @@ def build_problem(log: Log) -> Problem:
         first_seen=first_seen,
         has_sensor=log.sensor is not None,
         n_observations=position,
+        sensor_x=sensor_x,
     )
     if log.sensor is not None:
         _add_sensor_variables(problem, b, log)
@@ -295,7 +317,7 @@ def _add_sensor_variables(problem: Problem, b: _Builder, log: Log) -> None:
 def observation_rows(problem: Problem, decision: Decision, landmark_xs: np.ndarray) -> np.ndarray:
     """Factor rows of ``decision``'s observation seeing the landmarks at x ``landmark_xs``."""
     rows = np.empty((len(landmark_xs), 1 + N_SLOTS), dtype=np.int64)
-    a = decision.pose_x
+    a = decision.sensor_x
     rows[:, [KIND, XA, YA, TA, TB]] = (OBSERVATION, a, a + 1, a + 2, -1)
     rows[:, XB], rows[:, YB] = landmark_xs, landmark_xs + 1
     rows[:, [ANGLE, LENGTH]] = (decision.bearing_var, decision.range_var)

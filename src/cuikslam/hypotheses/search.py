@@ -20,7 +20,7 @@ another hypothesis by mistake.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Hashable
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
@@ -169,12 +169,14 @@ class Explorer:
         self.deadline: float | None = None
         """When the stronger level must stop (it then reports the level it reached)."""
         self.local = (
-            LocalCheck(problem.pose_x, len(problem.lo), rtol, DEFAULT_ROUNDS) if local else None
+            LocalCheck(problem.pose_x, len(problem.lo), rtol, DEFAULT_ROUNDS, problem.sensor_x)
+            if local
+            else None
         )
-        self._decisions_of: dict[int, list[int]] = {}
-        """Pose -> its decisions, in order."""
+        self._decisions_of: dict[Hashable, list[int]] = {}
+        """Scan (a pose, or a pose and a sensor offset) -> its decisions, in order."""
         for k, d in enumerate(problem.decisions):
-            self._decisions_of.setdefault(d.pose, []).append(k)
+            self._decisions_of.setdefault(d.scan, []).append(k)
         self._done_xs, self._done_radii = self._completed_poses()
 
     # ---------------------------------------------------------------- precomputed
@@ -199,11 +201,12 @@ class Explorer:
             return self.problem.named_class[number]
         return self.problem.decisions[node.blocks[number - self.n_named]].landmark_class
 
-    def seen_by(self, node: Node, pose: int) -> set[int]:
-        """Landmark numbers ``pose`` sees in ``node``: its named observations' landmarks and
-        those of its unlabelled observations decided so far."""
-        seen = set(self.problem.seen_named.get(pose, ()))
-        mine = [j for j in self._decisions_of.get(pose, ()) if j < node.depth]
+    def seen_by(self, node: Node, scan: Hashable) -> set[int]:
+        """Landmark numbers the ``scan`` (a pose, or a pose and a sensor offset: see
+        :attr:`Decision.scan`) sees in ``node``: its named observations' landmarks and those
+        of its unlabelled observations decided so far."""
+        seen = set(self.problem.seen_named.get(scan, ()))
+        mine = [j for j in self._decisions_of.get(scan, ()) if j < node.depth]
         if mine:
             wanted = set(mine)
             entry = node.assigned
@@ -241,13 +244,13 @@ class Explorer:
         numbers = [
             n for n in range(len(all_xs)) if self.landmark_class(node, n) == d.landmark_class
         ]
-        seen = self.seen_by(node, d.pose)
+        seen = self.seen_by(node, d.scan)
         kept = [n for n in numbers if n not in seen]
         stats.candidates += len(numbers) + 1
         stats.excluded_same_scan += len(numbers) - len(kept)
         options = len(kept) + 1
         xs = all_xs[kept]
-        passed = graph.gate(node.overlay, d.pose_x, xs, d.bearing_var, d.range_var)
+        passed = graph.gate(node.overlay, d.sensor_x, xs, d.bearing_var, d.range_var)
         stats.gated += int(np.count_nonzero(~passed))
         ids = graph.intern(observation_rows(p, d, xs[passed]))
         out: list[Node] = []
