@@ -78,6 +78,8 @@ the cap keeps the cost of a window independent of the log's length)."""
 MAX_LP_ROUNDS = 12
 MIN_GAIN = 0.005
 """Stop after a sweep that shrinks the total width by less than this fraction."""
+CENTRAL_ONLY = True
+"""Each pose is bounded by one window per sweep (see ``_bounded``)."""
 FULL_ROUND_EVERY = 3
 """Every this many sweeps, stale bounds are solved again all the same."""
 UNSTALE_SHRINK = 0.02
@@ -140,7 +142,12 @@ class _Window:
     indices: np.ndarray
     rows: np.ndarray
     targets: np.ndarray
+    """Every variable of the window's poses and landmarks (sorted)."""
     headings: np.ndarray
+    bounded: np.ndarray
+    """The variables whose bounds this window's LPs compute, x coordinates first, then y,
+    then headings, each in the order of the chain: consecutive LPs then have nearby
+    optima, so each starts close to the last one's basis."""
 
 
 def _windows(factors: np.ndarray) -> list[_Window]:
@@ -165,6 +172,7 @@ def _windows(factors: np.ndarray) -> list[_Window]:
         starts = list(range(0, len(poses) - WINDOW_OVERLAP, WINDOW_POSES - WINDOW_OVERLAP))
     order = np.argsort(first, kind="stable")
     sorted_first = first[order]
+    landmark_x = np.unique(rows[rows[:, KIND] == OBSERVATION, XB])
     windows = []
     for start in starts:
         end = start + WINDOW_POSES
@@ -176,10 +184,39 @@ def _windows(factors: np.ndarray) -> list[_Window]:
         targets = [selected[:, XA], selected[:, XA] + 1, selected[:, TA], b, b + 1]
         targets.append(selected[selected_turns, TB])
         headings = np.unique(np.concatenate([selected[:, TA], selected[selected_turns, TB]]))
-        windows.append(
-            _Window(kept[inside], selected, np.unique(np.concatenate(targets)), headings)
-        )
+        targets = np.unique(np.concatenate(targets))
+        bounded = _bounded(targets, poses, start, end, len(poses), landmark_x)
+        windows.append(_Window(kept[inside], selected, targets, headings, bounded))
     return windows
+
+
+def _bounded(
+    targets: np.ndarray,
+    poses: np.ndarray,
+    start: int,
+    end: int,
+    n_poses: int,
+    landmark_x: np.ndarray,
+) -> np.ndarray:
+    """The ``targets`` a window bounds, in LP order (see ``_Window.bounded``).
+
+    With ``CENTRAL_ONLY``, a window bounds the poses of its middle ``WINDOW_POSES -
+    WINDOW_OVERLAP`` positions (the first and last windows reach the ends of the chain),
+    so each pose is bounded by the one window where it has the most neighbours on both
+    sides; landmarks are bounded by every window that sees them.
+    """
+    k = np.searchsorted(poses, targets, side="right") - 1
+    offset = targets - poses[np.maximum(k, 0)]
+    is_pose = (k >= 0) & (offset <= 2)  # x, y, theta of a pose are consecutive variables
+    kind = np.where(is_pose, offset, np.where(np.isin(targets, landmark_x), 0, 1))
+    keep = np.ones(len(targets), dtype=bool)
+    if CENTRAL_ONLY:
+        margin = WINDOW_OVERLAP // 2
+        low = start + margin if start > 0 else 0
+        high = end - (WINDOW_OVERLAP - margin) if end < n_poses else n_poses
+        keep = ~is_pose | ((k >= low) & (k < high))
+    order = np.lexsort((targets, kind))
+    return targets[order[keep[order]]]
 
 
 def _signature(lo: np.ndarray, hi: np.ndarray, variables: np.ndarray) -> float:
@@ -387,8 +424,8 @@ def _polytope_rounds(
             if _signature(lo, hi, window.targets) < signature[w] - UNSTALE_SHRINK:
                 stale_lo[window.targets] = False
                 stale_hi[window.targets] = False
-            lower = window.targets[~stale_lo[window.targets]]
-            upper = window.targets[~stale_hi[window.targets]]
+            lower = window.bounded[~stale_lo[window.bounded]]
+            upper = window.bounded[~stale_hi[window.bounded]][::-1]
             if lower.size == 0 and upper.size == 0:
                 continue
             if expired(deadline):

@@ -28,6 +28,7 @@ from cuikslam._jit import jit
 from cuikslam.budget import expired, remaining
 from cuikslam.interval import _arith
 from cuikslam.interval._rounding import add_down, add_up, mul_down, mul_up, sub_down, sub_up
+from cuikslam.narrowing import _simplex
 
 __all__ = [
     "LP_ITERATIONS_PER_SIZE",
@@ -49,6 +50,14 @@ PRIMAL_SIMPLEX = 4
 cost vector, so the last optimal basis stays primal feasible: primal simplex needs about a
 third of the iterations of dual simplex from it (measured on random worlds)."""
 
+REUSE_COLUMN_BASIS = True
+"""Without the kernel, each column's LP starts from its optimal basis of the last call."""
+SEQUENCE_KERNEL = True
+"""Solve a window's LPs with :mod:`._simplex` from HiGHS's first optimum."""
+KERNEL_CHUNK = 16
+"""LPs per call of the kernel (the deadline is looked at between calls)."""
+KERNEL_ITERATIONS = 2000
+"""Simplex iterations one LP may take in the kernel before HiGHS takes it over."""
 _SOLVER = getattr(getattr(highspy, "_core", None), "_Highs", highspy.Highs)
 """The HiGHS class: the bare binding when there is one (the ``highspy.Highs`` wrapper
 installs a logging callback that prints a banner on stdout the first time, even when
@@ -62,10 +71,12 @@ _LIMITS = (
 
 @dataclass
 class WarmStarts:
-    """Optimal LP bases of earlier calls, per column and direction."""
+    """Optimal LP bases of earlier calls, per column and direction, and the last basis of
+    the last sequence (see :func:`certified_bounds`)."""
 
     minima: dict[int, highspy.HighsBasis] = field(default_factory=dict)
     maxima: dict[int, highspy.HighsBasis] = field(default_factory=dict)
+    last: highspy.HighsBasis | None = None
 
 
 @dataclass
@@ -219,6 +230,13 @@ def certified_bounds(
         ``inf`` where nothing was certified.
     """
     upper_columns = columns if upper_columns is None else upper_columns
+    if SEQUENCE_KERNEL:
+        lower, upper, stats = _sequence(
+            csc, row_lo, row_hi, box, columns, upper_columns, warm, deadline
+        )
+        if statistics is not None:
+            statistics.add(stats)
+        return lower, upper
     lower, stats_lo = _bounds(csc, row_lo, row_hi, box, columns, 1.0, warm.minima, deadline)
     upper, stats_hi = _bounds(csc, row_lo, row_hi, box, upper_columns, -1.0, warm.maxima, deadline)
     if statistics is not None:
@@ -264,7 +282,7 @@ def _bounds(
             solver.changeColCost(previous, 0.0)
         solver.changeColCost(j, sense)
         previous = j
-        basis = bases.pop(j, None)
+        basis = bases.pop(j, None) if REUSE_COLUMN_BASIS else None
         if basis is not None and (len(basis.col_status), len(basis.row_status)) == shape:
             solver.setBasis(basis)
             fresh = False
@@ -287,6 +305,146 @@ def _bounds(
             solver.clearSolver()  # the next LP starts afresh, not from a stuck state
         out.append(bound if sense > 0 else -bound)
     return out, stats
+
+
+def _new_solver(csc: sparse.csc_matrix, row_lo, row_hi, box) -> highspy.Highs:
+    solver = _SOLVER()
+    solver.setOptionValue("output_flag", False)
+    solver.setOptionValue("presolve", "off")
+    solver.setOptionValue("simplex_strategy", PRIMAL_SIMPLEX)
+    size = csc.shape[0] + csc.shape[1]
+    solver.setOptionValue(
+        "simplex_iteration_limit", max(LP_MIN_ITERATIONS, LP_ITERATIONS_PER_SIZE * size)
+    )
+    solver.passModel(_model(csc, row_lo, row_hi, box))
+    return solver
+
+
+_STATUS = (
+    highspy.HighsBasisStatus.kLower,
+    highspy.HighsBasisStatus.kBasic,
+    highspy.HighsBasisStatus.kUpper,
+)
+
+
+def _highs_basis(ids: np.ndarray, side: np.ndarray, m: int, n: int) -> highspy.HighsBasis:
+    """The HiGHS basis whose nonbasic variables are the active constraints ``ids``."""
+    status = np.ones(m + n, dtype=np.int64)
+    status[ids] = np.where(side == 1, 2, 0)
+    basis = highspy.HighsBasis()
+    basis.row_status = [_STATUS[v] for v in status[:m].tolist()]
+    basis.col_status = [_STATUS[v] for v in status[m:].tolist()]
+    basis.valid = True
+    return basis
+
+
+def _sequence(
+    csc: sparse.csc_matrix,
+    row_lo: np.ndarray,
+    row_hi: np.ndarray,
+    box: np.ndarray,
+    columns: list[int],
+    upper_columns: list[int],
+    warm: WarmStarts,
+    deadline: float | None,
+) -> tuple[list[float], list[float], LpStatistics]:
+    """Certified minima of ``columns`` then maxima of ``upper_columns``, as one sequence:
+    HiGHS solves an LP whenever the sequence needs a vertex (the first, or after the
+    kernel gives up on one), :func:`._simplex.solve_sequence` solves the others from the
+    last optimum. Every bound is a safe bound of the multipliers found."""
+    ensure_round_to_nearest()
+    stats = LpStatistics()
+    m, n = csc.shape
+    order = np.array(list(columns) + list(upper_columns), dtype=np.int64)
+    senses = np.concatenate([np.ones(len(columns)), -np.ones(len(upper_columns))])
+    bounds = np.full(len(order), -math.inf)
+    if len(order) == 0:
+        return [], [], stats
+    csr = csc.tocsr()
+    csr.sort_indices()
+    lower = np.concatenate([row_lo, box[:, 0]])
+    upper = np.concatenate([row_hi, box[:, 1]])
+    box_lo, box_hi = np.ascontiguousarray(box[:, 0]), np.ascontiguousarray(box[:, 1])
+    objective = np.zeros(n)
+    duals = np.zeros((len(order), m))
+    solver = None
+    fresh = True  # no basis in the solver: a failed LP is not retried
+    costed = 0
+    state = None
+    q = 0
+    while q < len(order):
+        if expired(deadline):
+            stats.skipped += len(order) - q
+            break
+        if state is None:
+            if solver is None:
+                solver = _new_solver(csc, row_lo, row_hi, box)
+                if warm.last is not None and len(warm.last.col_status) == n:
+                    solver.setBasis(warm.last)
+                    fresh = False
+            else:
+                solver.changeColCost(costed, 0.0)
+            costed = int(order[q])
+            solver.changeColCost(costed, float(senses[q]))
+            status = _run(solver, deadline, stats)
+            if status != _OPTIMAL and not fresh and not expired(deadline):
+                # a warm start that went nowhere: once more from scratch
+                solver.clearSolver()
+                stats.retries += 1
+                status = _run(solver, deadline, stats)
+            objective[order[q]] = senses[q]
+            y = np.asarray(solver.getSolution().row_dual, dtype=np.float64) + 0.0
+            if y.shape == (m,) and np.all(np.isfinite(y)):
+                bounds[q] = _safe_bound(
+                    csc.indptr, csc.indices, csc.data, row_lo, row_hi, objective, y, box_lo, box_hi
+                )  # fmt: skip
+            objective[order[q]] = 0.0
+            if status == _OPTIMAL:
+                stats.optimal += 1
+                basis = solver.getBasis()
+                state = _simplex.active_set(
+                    [int(v) for v in basis.col_status], [int(v) for v in basis.row_status], n
+                )
+                if state is not None:
+                    inverse = _simplex.inverse_of_active(
+                        state[0], csr.indptr, csr.indices, csr.data, n
+                    )
+                    state = None if inverse is None else state
+            else:
+                stats.limit_hits += status in _LIMITS
+                solver.clearSolver()  # the next LP starts afresh, not from a stuck state
+            fresh = status != _OPTIMAL
+            q += 1
+            continue
+        ids, side = state
+        stop = min(len(order), q + KERNEL_CHUNK)
+        code, at, _ = _simplex.solve_sequence(
+            csr.indptr, csr.indices, csr.data, lower, upper, ids, side, inverse, order,
+            senses, q, stop, KERNEL_ITERATIONS, duals,
+        )  # fmt: skip
+        for r in range(q, at):
+            objective[order[r]] = senses[r]
+            bounds[r] = _safe_bound(
+                csc.indptr, csc.indices, csc.data, row_lo, row_hi, objective, duals[r],
+                box_lo, box_hi,
+            )  # fmt: skip
+            objective[order[r]] = 0.0
+        stats.solved += at - q
+        stats.optimal += at - q
+        q = at
+        if code == _simplex.REFACTOR:
+            inverse = _simplex.inverse_of_active(ids, csr.indptr, csr.indices, csr.data, n)
+            state = None if inverse is None else state
+        elif code == _simplex.FAILED:
+            state = None  # HiGHS takes LP q, from the kernel's last vertex
+            if solver is not None:
+                solver.setBasis(_highs_basis(ids, side, m, n))
+                fresh = False
+    if state is not None:
+        warm.last = _highs_basis(state[0], state[1], m, n)
+    bounds[senses < 0] = -bounds[senses < 0]
+    k = len(columns)
+    return bounds[:k].tolist(), bounds[k:].tolist(), stats
 
 
 def _run(solver: highspy.Highs, deadline: float | None, stats: LpStatistics) -> object:

@@ -25,7 +25,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import sparse
 
-from cuikslam import interval as ia
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.graph.encoding import (
     ANGLE,
@@ -42,8 +41,12 @@ from cuikslam.graph.encoding import (
     YA,
     YB,
 )
-from cuikslam.interval._rounding import TWO_PI_HI, TWO_PI_LO
+from cuikslam.interval import ops as ia
+from cuikslam.interval._periodic import _shift_bounds, periodic_meet_k
 from cuikslam.narrowing.lp_bounds import LpStatistics, WarmStarts, certified_bounds
+
+END_TANGENTS_ABOVE = 0.3
+"""Tangents at the ends of an angle's interval are kept when it is wider than this (rad)."""
 
 __all__ = [
     "LinearRelaxation",
@@ -78,7 +81,7 @@ class LinearRelaxation:
 
 
 def _point(v: np.ndarray) -> np.ndarray:
-    return ia.interval(v, v)
+    return np.stack((v, v), axis=-1)
 
 
 def _trig_range_rows(phi: np.ndarray, use_cos: bool) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -110,7 +113,13 @@ def _trig_range_rows(phi: np.ndarray, use_cos: bool) -> list[tuple[np.ndarray, n
         derivative = ia.neg(derivative)
     curvature = ia.mul(second, ia.mul(_point(np.full_like(a, 0.5)), ia.sqr(step)))
     out = []
-    for m in (slope_at(a), slope_at(middle), slope_at(b), secant):
+    narrow = (b - a) <= END_TANGENTS_ABOVE
+    for m, at_end in (
+        (slope_at(a), True),
+        (slope_at(middle), False),
+        (slope_at(b), True),
+        (secant, False),
+    ):
         taylor = ia.add(
             ia.add(h(middle, m), ia.mul(ia.sub(derivative, _point(m)), step)), curvature
         )
@@ -121,6 +130,9 @@ def _trig_range_rows(phi: np.ndarray, use_cos: bool) -> list[tuple[np.ndarray, n
         upper = np.where(
             convex, np.minimum(taylor[:, 1], np.maximum(ends_a[:, 1], ends_b[:, 1])), taylor[:, 1]
         )
+        if at_end:  # on a narrow arc the middle tangent and the secant hold it as well
+            lower = np.where(narrow, -np.inf, lower)
+            upper = np.where(narrow, np.inf, upper)
         out.append((m, np.stack([lower, upper], axis=-1)))
     return out
 
@@ -266,9 +278,15 @@ def relax(factors: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> LinearRelaxati
     vals = np.where(bad[row_ids], 0.0, vals)
     bounds[:, 0] = np.where(np.isnan(bounds[:, 0]) | bad, -np.inf, bounds[:, 0])
     bounds[:, 1] = np.where(np.isnan(bounds[:, 1]) | bad, np.inf, bounds[:, 1])
-    matrix = sparse.csr_matrix((vals, (row_ids, cols)), shape=(len(counts), width))
+    # rows free on both sides constrain nothing: left out of the matrix
+    useful = np.isfinite(bounds).any(axis=1)
+    keep = useful[row_ids]
+    renumber = np.cumsum(useful) - 1
+    matrix = sparse.csr_matrix(
+        (vals[keep], (renumber[row_ids[keep]], cols[keep])), shape=(int(useful.sum()), width)
+    )
     return LinearRelaxation(
-        matrix, bounds[:, 0], bounds[:, 1], col_lo, col_hi, aux_angle_cols, aux_is_cos
+        matrix, bounds[useful, 0], bounds[useful, 1], col_lo, col_hi, aux_angle_cols, aux_is_cos
     )
 
 
@@ -322,22 +340,27 @@ def _rotation_rows(
 def _turn_rows(
     odometry: np.ndarray, box: np.ndarray
 ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """``tb - ta - turn = 2 pi k``, for the odometry factors where a single k fits the boxes."""
+    """``tb - ta - turn = 2 pi k``, for the odometry factors where a single k fits the boxes.
+
+    The k that fit are found by the interval kernel's :func:`periodic_meet_k` (the copies
+    ``2 pi k`` of 0 that meet ``tb - ta - turn``), and ``2 pi k`` is enclosed by its
+    outward-rounded ``_shift_bounds``.
+    """
     diff = ia.sub(ia.sub(box[odometry[:, TB]], box[odometry[:, TA]]), box[odometry[:, ANGLE]])
-    k_lo = np.ceil(diff[:, 0] / TWO_PI_HI - 1e-12)
-    k_hi = np.floor(diff[:, 1] / TWO_PI_LO + 1e-12)
-    single = k_lo == k_hi
-    k = k_lo[single]
-    shift = np.where(
-        k >= 0,
-        np.stack([k * TWO_PI_LO, k * TWO_PI_HI], axis=-1).T,
-        np.stack([k * TWO_PI_HI, k * TWO_PI_LO], axis=-1).T,
-    ).T
-    shift = ia.interval(np.nextafter(shift[:, 0], -np.inf), np.nextafter(shift[:, 1], np.inf))
+    single = np.zeros(len(odometry), dtype=bool)
+    shift = np.empty((len(odometry), 2))
+    for f, (lo, hi) in enumerate(diff.tolist()):
+        _, _, k_first, k_last = periodic_meet_k(lo, hi, 0.0, 0.0)
+        if k_first == k_last and np.isfinite(k_first):
+            single[f] = True
+            s_lo, s_hi = _shift_bounds(k_first)
+            # one more step out: an exact world's truth meets the relation only to within
+            # its own precision (1e-391 from 0 at k = 0)
+            shift[f] = (np.nextafter(s_lo, -np.inf), np.nextafter(s_hi, np.inf))
     o = odometry[single]
     cols = np.column_stack([o[:, TB], o[:, TA], o[:, ANGLE]])
     vals = np.tile([1.0, -1.0, -1.0], (single.sum(), 1))
-    return [(cols, vals, shift)]
+    return [(cols, vals, shift[single])]
 
 
 def tighten(
@@ -373,6 +396,12 @@ def tighten(
     return lo, hi, feasible
 
 
+def _among(targets: np.ndarray, used: np.ndarray) -> np.ndarray:
+    """The ``targets`` found in the sorted ``used``, in their order (the LPs' order)."""
+    at = np.minimum(np.searchsorted(used, targets), max(len(used) - 1, 0))
+    return targets[(len(used) > 0) & (used[at] == targets)] if len(used) else targets[:0]
+
+
 def tighten_in_place(
     factors: np.ndarray,
     lo: np.ndarray,
@@ -400,8 +429,8 @@ def tighten_in_place(
     box = np.stack([relaxation.col_lo, relaxation.col_hi], axis=-1)
     csc = relaxation.matrix.tocsc()
     upper_targets = targets if upper_targets is None else upper_targets
-    chosen = np.intersect1d(np.asarray(targets, dtype=np.int64), used)
-    upper_chosen = np.intersect1d(np.asarray(upper_targets, dtype=np.int64), used)
+    chosen = _among(np.asarray(targets, dtype=np.int64), used)
+    upper_chosen = _among(np.asarray(upper_targets, dtype=np.int64), used)
     # minima, then maxima, each with its own HiGHS instance
     warm = warm if warm is not None else WarmStarts()
     lower, upper = certified_bounds(
