@@ -85,7 +85,7 @@ def test_the_split_search_finds_what_one_process_finds(client, seed: int) -> Non
     assert many.statistics["resubmitted"] == 0
     assert any(r.unexplored for r in results), "no task was split again"
     assert_same_solution(one, many)
-    assert sorted(streamed) == sorted(streamed_one)
+    assert streamed == streamed_one  # in depth-first order
 
 
 def test_the_best_ranked_and_the_stronger_level_match(client) -> None:
@@ -113,7 +113,14 @@ def test_a_node_budget_stop_names_every_unexplored_subtree(client) -> None:
     log = ambiguous_log(2)
 
     def survivors_of(results) -> list[tuple[int, ...]]:
-        return sorted(tuple(row) for r in results for row in r.survivors.tolist())
+        """Every survivor's decisions, in depth-first order (by position)."""
+        pairs = [
+            (tuple(at), tuple(d))
+            for r in results
+            for at, d in zip(r.positions.tolist(), r.survivors.tolist(), strict=True)
+        ]
+        assert len(set(pairs)) == len(pairs)
+        return [d for _, d in sorted(pairs)]
 
     full: list = []
     search_distributed(
@@ -121,7 +128,7 @@ def test_a_node_budget_stop_names_every_unexplored_subtree(client) -> None:
         on_survivor=lambda _: None,
     )  # fmt: skip
     part: list = []
-    left: list[list[list[int]]] = []
+    left: list = []
     stopped = search_distributed(
         log, client=client, consistency="hull", quantum_nodes=10, max_nodes=60,
         on_result=part.append, on_unexplored=left.append, on_survivor=lambda _: None,
@@ -135,7 +142,7 @@ def test_a_node_budget_stop_names_every_unexplored_subtree(client) -> None:
         key="rest", consistency="hull", rtol=1e-3, strengthen_during=0, local_frame=True,
         keep=1, all_survivors=True, quantum_s=None, deadline=None,
     )  # fmt: skip
-    rest = explore_prefixes(log, sorted(tuple(p) for p in prefixes), options, None)
+    rest = explore_prefixes(log, prefixes, options, None)
     assert not rest.unexplored
     assert survivors_of([*part, rest]) == survivors_of(full)
     assert stopped.statistics["explored_fraction"] + rest.done == pytest.approx(1.0, abs=1e-12)

@@ -40,6 +40,7 @@ from cuikslam.hypotheses.search import (
     Explorer,
     Node,
     SearchStatistics,
+    _hypothesis,
     _rank_key,
     _Tally,
     explore,
@@ -48,7 +49,7 @@ from cuikslam.hypotheses.search import (
 from cuikslam.log.records import Log
 from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
-from cuikslam.results.solution import Solution
+from cuikslam.results.solution import Hypothesis, Solution
 
 __all__ = [
     "SubtreeResult",
@@ -63,6 +64,9 @@ SPLIT_PER_SLOT = 3
 """Prefixes the client's breadth-first expansion aims at, per worker thread."""
 MAX_BATCH = 8
 """Prefixes one task explores at most (they share the replay of their common decisions)."""
+Prefix = tuple[tuple[int, ...], tuple[int, ...]]
+"""A subtree: its root's *position* (index among its siblings at each depth, so that
+positions sort in depth-first order) and its *decisions* (landmark numbers)."""
 _NOT_SUMMED = {"peak_frontier", "explored_fraction", "survivors", "unexplored_subtrees"}
 
 
@@ -89,12 +93,16 @@ class TaskOptions:
 class SubtreeResult:
     """What a task found in its subtrees; results merge by concatenation and sums."""
 
-    prefixes: list[tuple[int, ...]]
+    prefixes: list[Prefix]
     survivors: np.ndarray
-    """Decisions of the survivors, one row each, in depth-first order."""
+    """Decisions of the survivors, one row each."""
+    positions: np.ndarray
+    """Their positions (one row each: they sort in depth-first order)."""
     n_survivors: int
-    best: list[tuple[Any, tuple[int, ...]]]
-    """(rank key, decisions) of the best-ranked survivors."""
+    best: list[tuple[Any, tuple[int, ...], tuple[int, ...], Hypothesis | None]]
+    """(rank key, position, decisions, hypothesis) of the best-ranked survivors; the
+    hypothesis is built here at level ``hull`` (the client has nothing to narrow), else
+    None."""
     hull_lo: np.ndarray
     hull_hi: np.ndarray
     counts: dict[str, int]
@@ -102,10 +110,14 @@ class SubtreeResult:
     peak_frontier: int
     done: float
     """Share of the whole tree this task decided."""
-    unexplored: list[tuple[int, ...]]
+    unexplored: list[Prefix]
     """Pending prefixes when the quantum or the deadline stopped it (the next one last)."""
     lost_on_replay: int
+    replayed: int
+    """Nodes expanded again to reach the prefixes (not counted in ``counts``)."""
+    replay_s: float
     cpu_s: float
+    """CPU seconds of the task's thread, replay included."""
 
     @property
     def expanded(self) -> int:
@@ -150,7 +162,7 @@ def replay_all(
 
 
 def explore_prefixes(
-    log: Log, prefixes: list[tuple[int, ...]], options: TaskOptions, max_nodes: int | None
+    log: Log, prefixes: list[Prefix], options: TaskOptions, max_nodes: int | None
 ) -> SubtreeResult:
     """Explore the subtrees of ``prefixes``: a pure function of its arguments (but for
     where a time quantum or the deadline stops it, which ``unexplored`` reports).
@@ -159,8 +171,8 @@ def explore_prefixes(
     ----------
     log : Log
         The log being solved.
-    prefixes : list of tuple of int
-        Roots of the subtrees (decisions, landmark numbers), sorted.
+    prefixes : list of Prefix
+        Roots of the subtrees: (position, decisions) each, in depth-first order.
     options : TaskOptions
         The search's options.
     max_nodes : int or None
@@ -180,17 +192,39 @@ def explore_prefixes(
     deadline = _local_deadline(options.deadline)
     explorer.deadline = deadline
     root = explorer.root()
-    starts = replay_all(explorer, root, prefixes) if root is not None else [None] * len(prefixes)
-    kept = [n for n in starts if n is not None]
+    by_decisions = sorted(prefixes, key=lambda p: p[1])  # common decisions replayed once
+    starts = [None] * len(prefixes)
+    if root is not None:
+        starts = replay_all(explorer, root, [p[1] for p in by_decisions])
+    order = sorted(range(len(prefixes)), key=lambda i: by_decisions[i][0])
+    kept = [starts[i] for i in order if starts[i] is not None]
+    replayed, replay_s = explorer.stats.branch_points, time.thread_time() - cpu
     explorer.stats = SearchStatistics()
     applications = explorer.graph.applications
     tally = _Tally(explorer, None)
     decided: list[list[int]] = []
+    placed: list[tuple[int, ...]] = []
+    position = {tuple(d): pos for pos, d in prefixes}
+    expand = explorer.children
+
+    def children(node: Node) -> tuple[list[Node], int]:
+        kids, n_options = expand(node)
+        here = position.pop(tuple(node.decisions()), ())
+        for i, kid in enumerate(kids):
+            position[tuple(kid.decisions())] = (*here, i)
+        return kids, n_options
+
+    explorer.children = children  # each node's position, while it waits on the stack
 
     def found(node: Node) -> None:
+        at = position.pop(tuple(node.decisions()), ())
         if options.all_survivors or len(decided) < MAX_TALLIED:
             decided.append(node.decisions())
+            placed.append(at)
+        best_at[tuple(node.decisions())] = at
         tally.add_boxes(*explorer.graph.values(node.overlay, tally._cols))
+
+    best_at: dict[tuple[int, ...], tuple[int, ...]] = {}
 
     if options.quantum_s is not None:
         quantum_end = time.perf_counter() + options.quantum_s
@@ -198,20 +232,31 @@ def explore_prefixes(
     outcome = explore(explorer, kept, Budget(deadline, max_nodes), options.keep, found)
     stats = explorer.stats
     stats.operator_applications += explorer.graph.applications - applications
+
+    def built(node: Node) -> Hypothesis | None:
+        return _hypothesis(explorer, node) if options.consistency == "hull" else None
+
     counts = {k: v for k, v in asdict(stats).items() if k not in _NOT_SUMMED}
     n = len(problem.decisions)
     return SubtreeResult(
         prefixes=list(prefixes),
         survivors=np.array(decided, dtype=np.int32).reshape(len(decided), n),
+        positions=np.array(placed, dtype=np.int32).reshape(len(placed), n),
         n_survivors=stats.survivors,
-        best=[(_rank_key(explorer, s), tuple(s.decisions())) for s in outcome.survivors],
+        best=[
+            (_rank_key(explorer, s), best_at[d], d, built(s))
+            for s in outcome.survivors
+            for d in [tuple(s.decisions())]
+        ],
         hull_lo=tally._lo,
         hull_hi=tally._hi,
         counts=counts,
         peak_frontier=stats.peak_frontier,
         done=float(stats.explored_fraction),
-        unexplored=[tuple(u.decisions()) for u in outcome.unexplored],
+        unexplored=[(position[d], d) for u in outcome.unexplored for d in [tuple(u.decisions())]],
         lost_on_replay=len(starts) - len(kept),
+        replayed=replayed,
+        replay_s=replay_s,
         cpu_s=time.thread_time() - cpu,
     )
 
@@ -239,7 +284,7 @@ def search_distributed(
     quantum_s: float | None = DEFAULT_QUANTUM_S,
     quantum_nodes: int | None = None,
     on_result: Callable[[SubtreeResult], None] | None = None,
-    on_unexplored: Callable[[list[list[int]]], None] | None = None,
+    on_unexplored: Callable[[list[Prefix]], None] | None = None,
 ) -> Solution:
     """:func:`~cuikslam.hypotheses.solve_unknown` with its subtrees explored on ``client``'s
     workers (a :class:`distributed.Client`); the same parameters, and:
@@ -275,9 +320,11 @@ def search_distributed(
     keep = max(1, max_hypotheses)
     run = _Run(explorer, deadline, max_nodes)
     found: list[Node] = []
+    split_s = merge_s = 0.0
     if root is not None:
         slots = max(1, sum(client.nthreads().values()))
         prefixes = run.split(root, SPLIT_PER_SLOT * slots)
+        split_s = time.perf_counter() - start
         options = TaskOptions(
             key=uuid.uuid4().hex, consistency=consistency, rtol=rtol,
             strengthen_during=strengthen_during, local_frame=local_frame, keep=keep,
@@ -287,19 +334,23 @@ def search_distributed(
         results = run.on_cluster(
             client, log, prefixes, options, slots, quantum_nodes, progress, on_result
         )
+        merge_start = time.perf_counter()
         found = _merge(explorer, root, tally, results, keep)
+        merge_s = time.perf_counter() - merge_start
     stats = explorer.stats
     stats.explored_fraction = min(1.0, run.done)
     if on_unexplored is not None:
-        on_unexplored(run.unexplored())
+        on_unexplored(sorted(run.left))
     solution = finish_search(
         log, explorer, tally, found, run.unexplored(), run.stop_reason(), consistency,
         strengthen_limit, progress, start, messages,
+        build=_built_hypothesis if found and isinstance(found[0], _Built) else None,
     )  # fmt: skip
     solution.statistics.update(
         tasks=run.tasks, resubmitted=run.resubmitted, lost_on_replay=run.lost_on_replay,
         worker_cpu_s=run.cpu_s,
     )  # fmt: skip
+    solution.timings.update(split_s=split_s, client_s=run.client_s, merge_s=merge_s)
     return solution
 
 
@@ -312,29 +363,32 @@ class _Run:
         self.max_nodes = max_nodes
         self.done = 0.0
         self.expanded = 0
-        self.pending: deque[list[tuple[int, ...]]] = deque()
-        self.left: list[tuple[int, ...]] = []
+        self.pending: deque[list[Prefix]] = deque()
+        self.left: list[Prefix] = []
         """Prefixes a budget stop leaves unexplored."""
         self.tasks = self.resubmitted = self.lost_on_replay = 0
         self.cpu_s = 0.0
+        self.client_s = 0.0
+        """Seconds the client spent on the tasks' results (receiving, splitting, submitting)."""
         self._budget_hit: str | None = None
 
-    def split(self, root: Node, target: int) -> list[tuple[int, ...]]:
+    def split(self, root: Node, target: int) -> list[Prefix]:
         """Expand the tree breadth first until ``target`` nodes wait; their prefixes."""
         n = len(self.explorer.problem.decisions)
-        frontier, leaves = deque([root]), []
+        frontier: deque[tuple[Node, tuple[int, ...]]] = deque([(root, ())])
+        leaves = []
         while frontier and len(frontier) + len(leaves) < target:
             if self._exhausted():
                 break
-            node = frontier.popleft()
+            node, at = frontier.popleft()
             if node.depth == n:
-                leaves.append(node)
+                leaves.append((node, at))
                 continue
             kids, options = self.explorer.children(node)
             self.expanded += 1
             self.done += node.share * (options - len(kids)) / options
-            frontier.extend(kids)
-        return sorted(tuple(node.decisions()) for node in [*frontier, *leaves])
+            frontier.extend((kid, (*at, i)) for i, kid in enumerate(kids))
+        return sorted((at, tuple(node.decisions())) for node, at in [*frontier, *leaves])
 
     def _exhausted(self) -> bool:
         if self.deadline is not None and time.perf_counter() > self.deadline:
@@ -347,7 +401,7 @@ class _Run:
         self,
         client: Any,
         log: Log,
-        prefixes: list[tuple[int, ...]],
+        prefixes: list[Prefix],
         options: TaskOptions,
         slots: int,
         quantum_nodes: int | None,
@@ -361,7 +415,7 @@ class _Run:
         self.pending.extend([p] for p in prefixes)
         results: list[SubtreeResult] = []
         running = as_completed()
-        batches: dict[Any, tuple[list[tuple[int, ...]], int | None]] = {}
+        batches: dict[Any, tuple[list[Prefix], int | None]] = {}
         allotted = 0
 
         def submit() -> None:
@@ -387,6 +441,7 @@ class _Run:
             batch, allowance = batches.pop(future)
             if self.max_nodes is not None:
                 allotted -= allowance
+            received = time.perf_counter()
             try:
                 result = future.result()
             except KilledWorker:  # Dask gave up on it after several lost workers: again
@@ -396,11 +451,12 @@ class _Run:
                 continue
             results.append(result)
             self._account(result, slots - len(batches))
+            submit()
+            self.client_s += time.perf_counter() - received
             if on_result is not None:
                 on_result(result)
             if progress is not None:
                 progress(int(1000 * min(1.0, self.done)), 1000)
-            submit()
             if not batches and self.pending and self._exhausted():
                 break
         for batch in self.pending:
@@ -422,8 +478,8 @@ class _Run:
         self.pending.extend(todo[i::chunks] for i in range(chunks))
 
     def unexplored(self) -> list[list[int]]:
-        """The prefixes left, the next one (depth first) last."""
-        return [list(p) for p in sorted(self.left, reverse=True)]
+        """The decisions of the prefixes left, the next one (depth first) last."""
+        return [list(p[1]) for p in sorted(self.left, reverse=True)]
 
     def stop_reason(self) -> str | None:
         if not self.left:
@@ -443,16 +499,34 @@ def _merge(
         stats.survivors += result.n_survivors
         stats.peak_frontier = max(stats.peak_frontier, result.peak_frontier)
         tally.add_boxes(result.hull_lo, result.hull_hi)
-    rows = [r.survivors for r in results if len(r.survivors)]
-    if rows:
-        decided = np.concatenate(rows)
-        for i in np.lexsort(decided.T[::-1]):
+    kept = [r for r in results if len(r.survivors)]
+    if kept:
+        decided = np.concatenate([r.survivors for r in kept])
+        placed = np.concatenate([r.positions for r in kept])
+        for i in np.lexsort(placed.T[::-1]):  # depth-first order
             tally.add_assignment(decided[i].tolist())
     best = sorted((b for r in results for b in r.best), key=lambda b: (b[0], b[1]))[:keep]
+    if all(b[3] is not None for b in best):
+        return [_Built(list(b[2]), b[3]) for b in best]
     # The best are rebuilt here, outside the search's counts.
     saved, applications = explorer.stats, explorer.graph.applications
     explorer.stats = SearchStatistics()
-    nodes = replay_all(explorer, root, sorted(b[1] for b in best))
+    nodes = replay_all(explorer, root, sorted(b[2] for b in best))
     explorer.stats, explorer.graph.applications = saved, applications
     by_decisions = {tuple(n.decisions()): n for n in nodes if n is not None}
-    return [by_decisions[b[1]] for b in best if b[1] in by_decisions]
+    return [by_decisions[b[2]] for b in best if b[2] in by_decisions]
+
+
+@dataclass(frozen=True)
+class _Built:
+    """A survivor whose hypothesis a worker built (level ``hull``: nothing left to do)."""
+
+    path: list[int]
+    hypothesis: Hypothesis
+
+    def decisions(self) -> list[int]:
+        return self.path
+
+
+def _built_hypothesis(survivor: _Built) -> Hypothesis:
+    return survivor.hypothesis
