@@ -64,19 +64,27 @@ _WARM_UP_LOG = [
     '{"type": "observation", "pose": 1, "class": "c", "range": [0, 0.2], "bearing": [0, 0.1]}',
     '{"type": "observation", "pose": 1, "class": "c", "range": [2, 2.1], "landmark": "A"}',
 ]
-_warmed_up: set[bool] = set()
+_warmed_up: set[bool | str] = set()
 """The kinds of log (unknown correspondence or not) whose kernels are loaded."""
 
 
-def warm_up(unknown: bool = True) -> float:
+def warm_up(unknown: bool = True, lp: bool = False) -> float:
     """Compile (or load from numba's cache) the kernels a solve uses, once per process.
 
     Runs before the time budget starts, so that the first solve after installing cuikslam
     spends its budget on the log rather than on compiling. ``unknown`` also loads the
     correspondence search's kernels, which a known-correspondence solve does not use
-    (quick from numba's cache, far longer to compile on a first run). Returns the seconds
-    it took (0 when done before).
+    (quick from numba's cache, far longer to compile on a first run). ``lp`` also loads
+    the kernels of the ``lp`` level (:func:`cuikslam.narrowing.consistency.warm_up_lp`).
+    Returns the seconds it took (0 when done before).
     """
+    if lp and "lp" not in _warmed_up:
+        from cuikslam.narrowing.consistency import warm_up_lp
+
+        start = time.perf_counter()
+        warm_up_lp()
+        _warmed_up.add("lp")
+        return time.perf_counter() - start + warm_up(unknown)
     if unknown in _warmed_up:
         return 0.0
     from cuikslam.log import parse_log_lines
@@ -153,7 +161,7 @@ def solve(
     """
     options = (options or SolveOptions()).replace(**overrides)
     ensure_round_to_nearest()
-    warm_up_s = warm_up(log.has_unknown_correspondence)
+    warm_up_s = warm_up(log.has_unknown_correspondence, options.consistency.value != "hull")
     start = time.perf_counter()
     deadline = deadline_after(options.time_budget)
     n_poses = len(log.pose_ids)

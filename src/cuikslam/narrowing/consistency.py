@@ -62,6 +62,7 @@ __all__ = [
     "StrengthenReport",
     "resolve_level",
     "strengthen",
+    "warm_up_lp",
 ]
 
 LEVELS = ("hull", "lp", "lp-split")
@@ -340,6 +341,22 @@ def strengthen(
     if not report.budget_exhausted:
         report.level = "lp-split"
     return CONSISTENT, applications
+
+
+def warm_up_lp() -> None:
+    """Compile (or load from numba's cache) the kernels of the ``lp`` level: the interval
+    operations of the relaxation, the safe bound and the LP sequence kernel, by bounding
+    the variables of one odometry step and one observation (a solve calls it before its
+    time budget starts)."""
+    # variables: pose 0 (0-2), pose 1 (3-5), turn 6, distance 7, landmark 8-9, bearing 10,
+    # range 11; columns KIND, XA, YA, TA, XB, YB, TB, ANGLE, LENGTH
+    factors = np.array(
+        [[ODOMETRY, 0, 1, 2, 3, 4, 5, 6, 7], [OBSERVATION, 3, 4, 5, 8, 9, -1, 10, 11]],
+        dtype=np.int64,
+    )
+    lo = np.array([0.0, 0.0, 0.0, 0.9, -0.2, 0.0, 0.0, 1.0, 1.5, -1.0, -0.1, 1.0])
+    hi = np.array([0.0, 0.0, 0.0, 1.2, 0.2, 0.1, 0.1, 1.1, 3.5, 1.0, 0.1, 1.1])
+    tighten_in_place(factors, lo, hi, np.arange(len(lo)), WarmStarts())
 
 
 def _factors_of(arrays: Arrays, variable: int) -> np.ndarray:
