@@ -74,23 +74,29 @@ def _timed(fn):
 
 def compare(one, many) -> dict:
     """How the cluster's result differs from one process's."""
-    same_reported = [h.assignment for h in one.hypotheses] == [
-        h.assignment for h in many.hypotheses
-    ]
+    a = {tuple(h.assignment): h for h in one.hypotheses}
+    b = {tuple(h.assignment): h for h in many.hypotheses}
     widest = 0.0
-    if same_reported:
-        for a, b in zip(one.hypotheses, many.hypotheses, strict=True):
-            for x, y in ((a.poses, b.poses), (a.landmarks, b.landmarks)):
-                finite = np.isfinite(x) & np.isfinite(y)
-                widest = max(widest, float(np.max(np.abs(x - y)[finite], initial=0.0)))
+    for key in a.keys() & b.keys():
+        for x, y in ((a[key].poses, b[key].poses), (a[key].landmarks, b[key].landmarks)):
+            finite = np.isfinite(x) & np.isfinite(y)
+            widest = max(widest, float(np.max(np.abs(x - y)[finite], initial=0.0)))
     return {
         "survivors": [one.statistics["survivors"], many.statistics["survivors"]],
         "complete": [one.complete, many.complete],
-        "same_reported": same_reported,
+        "same_reported": list(a) == list(b),
+        "reported_in_common": len(a.keys() & b.keys()),
         "same_summary": one.correspondence == many.correspondence,
         "largest_box_bound_difference_m": widest,
         "branch_points": [one.statistics["branch_points"], many.statistics["branch_points"]],
     }
+
+
+def _process_cpu() -> float:
+    import psutil
+
+    t = psutil.Process().cpu_times()
+    return t.user + t.system
 
 
 def part_speedup(repeat: int) -> dict:
@@ -106,8 +112,19 @@ def part_speedup(repeat: int) -> dict:
             runs["one_process"].append(row)
             print("one process", row, flush=True)
             for n in (2, 1) if _ == 0 else (2,):
+                before = clients[n].run(_process_cpu)
                 many, row = _timed(
                     lambda n=n: search_distributed(log, client=clients[n], consistency="hull")
+                )
+                after = clients[n].run(_process_cpu)
+                per_worker = [round(after[w] - before[w], 3) for w in before]
+                tail = many.timings["split_s"] + many.timings["merge_s"] + many.timings["finish_s"]
+                # on dedicated cores: the busiest worker, then the client's serial tail
+                dedicated = max(per_worker) + tail
+                row.update(
+                    worker_process_cpu_s=per_worker,
+                    client_tail_s=round(tail, 3),
+                    dedicated_cores_estimate_s=round(dedicated, 3),
                 )
                 row.update(
                     worker_cpu_s=round(many.statistics["worker_cpu_s"], 3),
@@ -123,6 +140,8 @@ def part_speedup(repeat: int) -> dict:
         for c in clusters.values():
             c.__exit__(None, None, None)
     best = {k: min(r["wall_s"] for r in v) for k, v in runs.items()}
+    one_cpu = min(r["client_cpu_s"] for r in runs["one_process"])
+    estimate = min(r["dedicated_cores_estimate_s"] for r in runs["workers_2"])
     return {
         "log": "simulate_random_world(seed=1, n_poses=10, n_landmarks=8, classes=('a',), "
         "size=(16, 12), max_range=6, odometry_bounds=(0.1, 0.2), "
@@ -131,6 +150,8 @@ def part_speedup(repeat: int) -> dict:
         "best_wall_s": best,
         "speedup_2_workers": round(best["one_process"] / best["workers_2"], 2),
         "speedup_1_worker": round(best["one_process"] / best["workers_1"], 2),
+        "one_process_cpu_s": one_cpu,
+        "speedup_2_workers_dedicated_cores_estimate": round(one_cpu / estimate, 2),
     }
 
 

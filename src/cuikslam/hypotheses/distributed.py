@@ -40,7 +40,6 @@ from cuikslam.hypotheses.search import (
     Explorer,
     Node,
     SearchStatistics,
-    _hypothesis,
     _rank_key,
     _Tally,
     explore,
@@ -49,7 +48,7 @@ from cuikslam.hypotheses.search import (
 from cuikslam.log.records import Log
 from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
-from cuikslam.results.solution import Hypothesis, Solution
+from cuikslam.results.solution import Solution
 
 __all__ = [
     "SubtreeResult",
@@ -99,10 +98,8 @@ class SubtreeResult:
     positions: np.ndarray
     """Their positions (one row each: they sort in depth-first order)."""
     n_survivors: int
-    best: list[tuple[Any, tuple[int, ...], tuple[int, ...], Hypothesis | None]]
-    """(rank key, position, decisions, hypothesis) of the best-ranked survivors; the
-    hypothesis is built here at level ``hull`` (the client has nothing to narrow), else
-    None."""
+    best: list[tuple[Any, tuple[int, ...], tuple[int, ...]]]
+    """(rank key, position, decisions) of the best-ranked survivors."""
     hull_lo: np.ndarray
     hull_hi: np.ndarray
     counts: dict[str, int]
@@ -233,9 +230,6 @@ def explore_prefixes(
     stats = explorer.stats
     stats.operator_applications += explorer.graph.applications - applications
 
-    def built(node: Node) -> Hypothesis | None:
-        return _hypothesis(explorer, node) if options.consistency == "hull" else None
-
     counts = {k: v for k, v in asdict(stats).items() if k not in _NOT_SUMMED}
     n = len(problem.decisions)
     return SubtreeResult(
@@ -244,7 +238,7 @@ def explore_prefixes(
         positions=np.array(placed, dtype=np.int32).reshape(len(placed), n),
         n_survivors=stats.survivors,
         best=[
-            (_rank_key(explorer, s), best_at[d], d, built(s))
+            (_rank_key(explorer, s), best_at[d], d)
             for s in outcome.survivors
             for d in [tuple(s.decisions())]
         ],
@@ -341,16 +335,19 @@ def search_distributed(
     stats.explored_fraction = min(1.0, run.done)
     if on_unexplored is not None:
         on_unexplored(sorted(run.left))
+    finish_start = time.perf_counter()
     solution = finish_search(
         log, explorer, tally, found, run.unexplored(), run.stop_reason(), consistency,
         strengthen_limit, progress, start, messages,
-        build=_built_hypothesis if found and isinstance(found[0], _Built) else None,
     )  # fmt: skip
     solution.statistics.update(
         tasks=run.tasks, resubmitted=run.resubmitted, lost_on_replay=run.lost_on_replay,
         worker_cpu_s=run.cpu_s,
     )  # fmt: skip
-    solution.timings.update(split_s=split_s, client_s=run.client_s, merge_s=merge_s)
+    solution.timings.update(
+        split_s=split_s, client_s=run.client_s, merge_s=merge_s,
+        finish_s=time.perf_counter() - finish_start,
+    )  # fmt: skip
     return solution
 
 
@@ -506,27 +503,11 @@ def _merge(
         for i in np.lexsort(placed.T[::-1]):  # depth-first order
             tally.add_assignment(decided[i].tolist())
     best = sorted((b for r in results for b in r.best), key=lambda b: (b[0], b[1]))[:keep]
-    if all(b[3] is not None for b in best):
-        return [_Built(list(b[2]), b[3]) for b in best]
-    # The best are rebuilt here, outside the search's counts.
+    # The best are rebuilt here (what follows the search needs their nodes), outside the
+    # search's counts.
     saved, applications = explorer.stats, explorer.graph.applications
     explorer.stats = SearchStatistics()
     nodes = replay_all(explorer, root, sorted(b[2] for b in best))
     explorer.stats, explorer.graph.applications = saved, applications
     by_decisions = {tuple(n.decisions()): n for n in nodes if n is not None}
     return [by_decisions[b[2]] for b in best if b[2] in by_decisions]
-
-
-@dataclass(frozen=True)
-class _Built:
-    """A survivor whose hypothesis a worker built (level ``hull``: nothing left to do)."""
-
-    path: list[int]
-    hypothesis: Hypothesis
-
-    def decisions(self) -> list[int]:
-        return self.path
-
-
-def _built_hypothesis(survivor: _Built) -> Hypothesis:
-    return survivor.hypothesis
