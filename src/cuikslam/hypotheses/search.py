@@ -22,7 +22,6 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Hashable
 from dataclasses import asdict, dataclass, replace
-from functools import partial
 
 import numpy as np
 
@@ -741,15 +740,13 @@ def finish_search(
     progress: Callable[[int, int], None] | None,
     start: float,
     messages: list[str],
-    build: Callable[[Node], Hypothesis] | None = None,
 ) -> Solution:
     """What follows the search, wherever it ran: the survivors' stronger level, the
     reported hypotheses, the summary, the statistics and the account of a budget stop.
 
     ``found`` are the best-ranked survivors (nodes of ``explorer``), ``explorer.stats``
     counts the whole search, ``unexplored`` names the subtrees left by a budget stop
-    (``stop_reason``), the next one to explore last. ``build`` makes a survivor's
-    :class:`Hypothesis` (by default from its node's boxes).
+    (``stop_reason``), the next one to explore last.
     """
     problem = explorer.problem
     stats = explorer.stats
@@ -771,8 +768,7 @@ def finish_search(
             tally.discard(node)
             stats.survivors -= 1
     hypotheses = sorted(
-        map(build or partial(_hypothesis, explorer), survivors),
-        key=lambda h: (h.n_landmarks, h.box_size),
+        (_hypothesis(explorer, n) for n in survivors), key=lambda h: (h.n_landmarks, h.box_size)
     )
     if stats.survivors > len(found):
         messages.append(
