@@ -155,6 +155,7 @@ def worker(log_path: str, level: str) -> dict:
         "lps": report.lp.solved,
         "lp_rounds": report.lp_rounds,
         "peak_rss_mib": peak_kib / 1024,
+        "load_average": os.getloadavg()[0],
         "peak_rss_kib_per_pose": peak_kib / len(graph.pose_ids),
         "widths": {
             c: {"median": float(np.median(widths[:, i])), "max": float(np.max(widths[:, i]))}
@@ -201,6 +202,7 @@ def main() -> None:
     parser.add_argument("--baseline", type=Path, help="a checkout folder holding src/cuikslam")
     parser.add_argument("--baseline-poses", default="1000")
     parser.add_argument("--baseline-level", default="lp")
+    parser.add_argument("--key", help="store the figures under this name (default: the world)")
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
@@ -226,7 +228,7 @@ def main() -> None:
     if args.json:
         path = Path(args.json)
         document = json.loads(path.read_text()) if path.exists() else {}
-        document[args.world] = {
+        document[args.key or args.world] = {
             "command": "python benchmarks/bench_long_logs.py " + " ".join(sys.argv[1:]),
             "seed": args.seed,
             "machine": f"{platform.machine()}, {os.cpu_count()} cores, "
