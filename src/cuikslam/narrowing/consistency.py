@@ -6,13 +6,15 @@
   overlapping windows of consecutive poses, forward then backward along the chain, each
   followed by propagation, until a sweep shrinks the boxes by less than 0.5 %. A bound
   whose LP stopped moving it is not solved again until its window's boxes have shrunk.
-  Correlation-aware, so it removes most of the wrapping effect: within 1.32x of the exact
-  hull on the seed's experiment. Its cost grows linearly with the log (every window has a
-  bounded size), so ``auto`` is ``lp`` at any length.
+  Each pose is bounded by the window where it sits in the middle; a window's LPs are
+  solved as one sequence (:func:`.lp_bounds.certified_bounds`: HiGHS, then a compiled
+  simplex from its basis). Correlation-aware, so it removes most of the wrapping effect:
+  within 1.31x of the exact hull on the seed's experiment. Its cost grows linearly with
+  the log (every window has a bounded size), so ``auto`` is ``lp`` at any length.
 - ``lp-split``: ``lp``, then the widest headings are bisected one after the other; each
   half is narrowed at level ``lp`` and the hull of the halves is kept. The linearisations
-  are tighter on half the heading interval. About 3.5 times the cost of ``lp``, for
-  boxes within 1.16x of the exact hull on the seed's experiment.
+  are tighter on half the heading interval. About 2.5 times the cost of ``lp``, for
+  boxes within 1.22x of the exact hull on the seed's experiment.
 
 Every level is sound: the boxes still contain every solution, and an empty result is a
 proof that the constraints have no solution.

@@ -12,6 +12,11 @@ with nanometre odometry) and a time limit (at most ``LP_TIME_LIMIT``, less when 
 caller's deadline is nearer). An LP that stops on a limit still gives the safe bound of
 whatever multipliers it has; its warm-start basis is dropped, and an LP that was started
 from a previous basis and did not reach an optimum is solved once more from scratch.
+
+The LPs of one call differ only in their cost, so after HiGHS's first optimum the others
+are solved by a compiled primal simplex (:mod:`._simplex`) from the last optimum: on these
+small LPs HiGHS costs a fixed ~0.15 ms per call and ~30 us per iteration, the kernel
+~10 us per iteration. An LP the kernel cannot finish goes back to HiGHS.
 """
 
 from __future__ import annotations
@@ -205,6 +210,11 @@ def certified_bounds(
     upper_columns: list[int] | None = None,
 ) -> tuple[list[float], list[float]]:
     """Certified minima and maxima of the ``columns`` over the polytope.
+
+    With ``SEQUENCE_KERNEL`` (the default) the LPs run in the order given, minima then
+    maxima, as one sequence: HiGHS solves the first and :mod:`._simplex` the others from
+    the last optimum, so an order in which consecutive optima are close is fastest. Each
+    bound is the safe bound of the multipliers found, whoever found them.
 
     Parameters
     ----------
