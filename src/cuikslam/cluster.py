@@ -58,6 +58,8 @@ def dask_client(
         cluster = distributed.LocalCluster(
             n_workers=workers or 1, threads_per_worker=1, processes=processes,
             dashboard_address=":0",
+            # threads share one process: a per-worker memory limit would pause them all
+            memory_limit="auto" if processes else 0,
         )  # fmt: skip
         client = distributed.Client(cluster)
     try:
