@@ -58,7 +58,9 @@ __all__ = [
 ]
 
 DEFAULT_QUANTUM_S = 1.0
-"""Seconds a task explores before it returns its pending subtrees (to be split again)."""
+"""CPU seconds a task explores (after its replay) before it returns its pending subtrees
+(to be split again): CPU, not wall, so that a loaded machine does not shorten the tasks
+and multiply the replays."""
 SPLIT_PER_SLOT = 3
 """Prefixes the client's breadth-first expansion aims at, per worker thread."""
 MAX_BATCH = 8
@@ -89,6 +91,31 @@ class TaskOptions:
 
 
 @dataclass
+class Material:
+    """What the client needs to rebuild a survivor's node without replaying it."""
+
+    lo: np.ndarray
+    hi: np.ndarray
+    rows: np.ndarray
+    """Its factor rows beyond the root's."""
+    blocks: tuple[int, ...]
+    level: str
+
+
+@dataclass
+class _Quantum(Budget):
+    """A budget that also stops after ``cpu_until`` (:func:`time.thread_time`)."""
+
+    cpu_until: float | None = None
+
+    def exhausted(self, nodes: int) -> str | None:
+        reason = super().exhausted(nodes)
+        if reason is None and self.cpu_until is not None and time.thread_time() > self.cpu_until:
+            return "work quantum"
+        return reason
+
+
+@dataclass
 class SubtreeResult:
     """What a task found in its subtrees; results merge by concatenation and sums."""
 
@@ -98,8 +125,9 @@ class SubtreeResult:
     positions: np.ndarray
     """Their positions (one row each: they sort in depth-first order)."""
     n_survivors: int
-    best: list[tuple[Any, tuple[int, ...], tuple[int, ...]]]
-    """(rank key, position, decisions) of the best-ranked survivors."""
+    best: list[tuple[Any, tuple[int, ...], tuple[int, ...], Material | None]]
+    """(rank key, position, decisions, material) of the best-ranked survivors; the
+    material when the rank key is at most the task's ``threshold``."""
     hull_lo: np.ndarray
     hull_hi: np.ndarray
     counts: dict[str, int]
@@ -159,7 +187,11 @@ def replay_all(
 
 
 def explore_prefixes(
-    log: Log, prefixes: list[Prefix], options: TaskOptions, max_nodes: int | None
+    log: Log,
+    prefixes: list[Prefix],
+    options: TaskOptions,
+    max_nodes: int | None,
+    threshold: Any = None,
 ) -> SubtreeResult:
     """Explore the subtrees of ``prefixes``: a pure function of its arguments (but for
     where a time quantum or the deadline stops it, which ``unexplored`` reports).
@@ -174,6 +206,9 @@ def explore_prefixes(
         The search's options.
     max_nodes : int or None
         Node expansions this task may make (the work quantum in nodes).
+    threshold : rank key, optional
+        Best-ranked survivors whose rank key is at most this (all without one) come with
+        their :class:`Material`.
 
     Returns
     -------
@@ -189,6 +224,9 @@ def explore_prefixes(
     deadline = _local_deadline(options.deadline)
     explorer.deadline = deadline
     root = explorer.root()
+    root_rows = (
+        set() if root is None else {r.tobytes() for r in explorer.graph.rows_of(root.overlay)}
+    )
     by_decisions = sorted(prefixes, key=lambda p: p[1])  # common decisions replayed once
     starts = [None] * len(prefixes)
     if root is not None:
@@ -223,10 +261,8 @@ def explore_prefixes(
 
     best_at: dict[tuple[int, ...], tuple[int, ...]] = {}
 
-    if options.quantum_s is not None:
-        quantum_end = time.perf_counter() + options.quantum_s
-        deadline = quantum_end if deadline is None else min(deadline, quantum_end)
-    outcome = explore(explorer, kept, Budget(deadline, max_nodes), options.keep, found)
+    quantum = None if options.quantum_s is None else time.thread_time() + options.quantum_s
+    outcome = explore(explorer, kept, _Quantum(deadline, max_nodes, quantum), options.keep, found)
     stats = explorer.stats
     stats.operator_applications += explorer.graph.applications - applications
 
@@ -238,9 +274,9 @@ def explore_prefixes(
         positions=np.array(placed, dtype=np.int32).reshape(len(placed), n),
         n_survivors=stats.survivors,
         best=[
-            (_rank_key(explorer, s), best_at[d], d)
+            (key, best_at[d], d, _material(explorer, s, root_rows, key, threshold))
             for s in outcome.survivors
-            for d in [tuple(s.decisions())]
+            for d, key in [(tuple(s.decisions()), _rank_key(explorer, s))]
         ],
         hull_lo=tally._lo,
         hull_hi=tally._hi,
@@ -253,6 +289,17 @@ def explore_prefixes(
         replay_s=replay_s,
         cpu_s=time.thread_time() - cpu,
     )
+
+
+def _material(
+    explorer: Explorer, node: Node, root_rows: set[bytes], key: Any, threshold: Any
+) -> Material | None:
+    if threshold is not None and key > threshold:
+        return None
+    lo, hi = explorer.graph.materialize(node.overlay)
+    rows = explorer.graph.rows_of(node.overlay)
+    own = np.array([r.tobytes() not in root_rows for r in rows], dtype=np.bool_)
+    return Material(lo, hi, rows[own], node.blocks, node.level)
 
 
 def _local_deadline(epoch: float | None) -> float | None:
@@ -288,8 +335,8 @@ def search_distributed(
     client : distributed.Client
         The cluster.
     quantum_s, quantum_nodes : float or int, optional
-        A task returns its pending subtrees after this many seconds or node expansions;
-        they are submitted again, split among idle workers.
+        A task returns its pending subtrees after this many CPU seconds or node
+        expansions; they are submitted again, split among idle workers.
     on_result : callable, optional
         Called with each task's result as it arrives (for tests and benchmarks).
     on_unexplored : callable, optional
@@ -312,7 +359,7 @@ def search_distributed(
     root = explorer.root()
     tally = _Tally(explorer, on_survivor)
     keep = max(1, max_hypotheses)
-    run = _Run(explorer, deadline, max_nodes)
+    run = _Run(explorer, deadline, max_nodes, keep)
     found: list[Node] = []
     split_s = merge_s = 0.0
     if root is not None:
@@ -329,7 +376,7 @@ def search_distributed(
             client, log, prefixes, options, slots, quantum_nodes, progress, on_result
         )
         merge_start = time.perf_counter()
-        found = _merge(explorer, root, tally, results, keep)
+        found = _merge(explorer, root, tally, results, run.best)
         merge_s = time.perf_counter() - merge_start
     stats = explorer.stats
     stats.explored_fraction = min(1.0, run.done)
@@ -354,8 +401,13 @@ def search_distributed(
 class _Run:
     """The client's side of one search: splitting, submitting, budgets, the account."""
 
-    def __init__(self, explorer: Explorer, deadline: float | None, max_nodes: int | None):
+    def __init__(
+        self, explorer: Explorer, deadline: float | None, max_nodes: int | None, keep: int
+    ):
         self.explorer = explorer
+        self.keep = keep
+        self.best: list = []
+        """The best-ranked survivors so far, as in :attr:`SubtreeResult.best`."""
         self.deadline = deadline
         self.max_nodes = max_nodes
         self.done = 0.0
@@ -427,8 +479,9 @@ class _Run:
                     allotted += allowance
                 batch = self.pending.popleft()
                 future = client.submit(
-                    explore_prefixes, log_future, batch, options, allowance, pure=False
-                )
+                    explore_prefixes, log_future, batch, options, allowance, self.threshold(),
+                    pure=False,
+                )  # fmt: skip
                 batches[future] = (batch, allowance)
                 running.add(future)
                 self.tasks += 1
@@ -461,8 +514,14 @@ class _Run:
         self.pending.clear()
         return results
 
+    def threshold(self) -> Any:
+        """The rank key of the ``keep``-th best survivor so far (None: fewer so far)."""
+        return self.best[-1][0] if len(self.best) >= self.keep else None
+
     def _account(self, result: SubtreeResult, idle: int) -> None:
         """Count a task's work; its pending prefixes wait, split among idle workers."""
+        merged = sorted([*self.best, *result.best], key=lambda b: (b[0], b[1]))
+        self.best = merged[: self.keep]
         self.done += result.done
         self.expanded += result.expanded
         self.lost_on_replay += result.lost_on_replay
@@ -485,10 +544,10 @@ class _Run:
 
 
 def _merge(
-    explorer: Explorer, root: Node, tally: _Tally, results: list[SubtreeResult], keep: int
+    explorer: Explorer, root: Node, tally: _Tally, results: list[SubtreeResult], best: list
 ) -> list[Node]:
     """Fold the tasks' results into ``explorer.stats`` and ``tally`` as one depth-first
-    search would; return the best-ranked survivors as nodes of ``explorer``."""
+    search would; return the ``best`` survivors as nodes of ``explorer``."""
     stats = explorer.stats
     for result in results:
         for key, value in result.counts.items():
@@ -502,12 +561,22 @@ def _merge(
         placed = np.concatenate([r.positions for r in kept])
         for i in np.lexsort(placed.T[::-1]):  # depth-first order
             tally.add_assignment(decided[i].tolist())
-    best = sorted((b for r in results for b in r.best), key=lambda b: (b[0], b[1]))[:keep]
-    # The best are rebuilt here (what follows the search needs their nodes), outside the
-    # search's counts.
-    saved, applications = explorer.stats, explorer.graph.applications
-    explorer.stats = SearchStatistics()
-    nodes = replay_all(explorer, root, sorted(b[2] for b in best))
-    explorer.stats, explorer.graph.applications = saved, applications
-    by_decisions = {tuple(n.decisions()): n for n in nodes if n is not None}
-    return [by_decisions[b[2]] for b in best if b[2] in by_decisions]
+    nodes = {b[2]: _rebuilt(explorer, b[2], b[3]) for b in best if b[3] is not None}
+    missing = sorted(b[2] for b in best if b[3] is None)
+    if missing:  # replayed, outside the search's counts
+        saved, applications = explorer.stats, explorer.graph.applications
+        explorer.stats = SearchStatistics()
+        replayed = replay_all(explorer, root, missing)
+        explorer.stats, explorer.graph.applications = saved, applications
+        nodes.update((tuple(n.decisions()), n) for n in replayed if n is not None)
+    return [nodes[b[2]] for b in best if b[2] in nodes]
+
+
+def _rebuilt(explorer: Explorer, decisions: tuple[int, ...], material: Material) -> Node:
+    """The node a worker found, in the client's graph (whose base set is the root's rows)."""
+    ids = explorer.graph.intern(material.rows) if len(material.rows) else np.zeros(0, np.int64)
+    overlay = explorer.graph.overlay_of(material.lo, material.hi, np.unique(ids))
+    assigned = None
+    for number in decisions:
+        assigned = (number, assigned)
+    return Node(len(decisions), overlay, material.blocks, assigned, level=material.level)
