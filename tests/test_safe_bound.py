@@ -234,3 +234,25 @@ def test_sequence_kernel_bounds_every_column_like_highs(seed: int) -> None:
     assert np.all(np.asarray(lower)[finite] >= np.asarray(alone_lo)[finite] - scale[finite])
     finite = np.isfinite(alone_hi)
     assert np.all(np.asarray(upper)[finite] <= np.asarray(alone_hi)[finite] + scale[finite])
+
+
+@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 2**20))
+def test_reused_multipliers_give_the_same_bounds_and_stay_sound(seed: int) -> None:
+    """Bounds from the last LPs' multipliers without solving: on the same polytope they
+    are the LPs' bounds; on other rows (here each row bound moved out by up to 10 %, the
+    point still inside) they still keep the point."""
+    csc, row_lo, row_hi, box, x0 = _relaxation_with_point(seed)
+    m, n = csc.shape
+    assume(m > 0)
+    columns = list(range(n))
+    warm = WarmStarts()
+    lower, upper = certified_bounds(csc, row_lo, row_hi, box, columns, warm)
+    again = certified_bounds(csc, row_lo, row_hi, box, columns, warm, reuse=True)
+    assert again == (lower, upper)
+    rng = np.random.default_rng(seed)
+    moved_lo = row_lo - 0.1 * rng.random(m) * np.abs(row_lo)
+    moved_hi = row_hi + 0.1 * rng.random(m) * np.abs(row_hi)
+    lower, upper = certified_bounds(csc, moved_lo, moved_hi, box, columns, warm, reuse=True)
+    for j in columns:
+        assert Fraction(lower[j]) <= Fraction(float(x0[j])) <= Fraction(upper[j]), j

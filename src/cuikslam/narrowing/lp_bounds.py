@@ -82,6 +82,8 @@ class WarmStarts:
     minima: dict[int, highspy.HighsBasis] = field(default_factory=dict)
     maxima: dict[int, highspy.HighsBasis] = field(default_factory=dict)
     last: highspy.HighsBasis | None = None
+    duals: dict[tuple[int, bool], np.ndarray] = field(default_factory=dict)
+    """The row multipliers of the last LP of each column and direction (True: minimum)."""
 
 
 @dataclass
@@ -208,6 +210,7 @@ def certified_bounds(
     deadline: float | None = None,
     statistics: LpStatistics | None = None,
     upper_columns: list[int] | None = None,
+    reuse: bool = False,
 ) -> tuple[list[float], list[float]]:
     """Certified minima and maxima of the ``columns`` over the polytope.
 
@@ -232,6 +235,10 @@ def certified_bounds(
     upper_columns : list of int or None
         Columns to bound from above, when not the same as ``columns`` (which are then
         bounded from below only).
+    reuse : bool
+        Solve no LP: each bound is the safe bound of the multipliers of the column's last
+        LP in ``warm`` (over these rows, which may differ from that LP's), ``-inf`` /
+        ``inf`` where there is none.
 
     Returns
     -------
@@ -240,6 +247,8 @@ def certified_bounds(
         ``inf`` where nothing was certified.
     """
     upper_columns = columns if upper_columns is None else upper_columns
+    if reuse:
+        return _reused(csc, row_lo, row_hi, box, columns, upper_columns, warm)
     if SEQUENCE_KERNEL:
         lower, upper, stats = _sequence(
             csc, row_lo, row_hi, box, columns, upper_columns, warm, deadline
@@ -315,6 +324,37 @@ def _bounds(
             solver.clearSolver()  # the next LP starts afresh, not from a stuck state
         out.append(bound if sense > 0 else -bound)
     return out, stats
+
+
+def _reused(
+    csc: sparse.csc_matrix,
+    row_lo: np.ndarray,
+    row_hi: np.ndarray,
+    box: np.ndarray,
+    columns: list[int],
+    upper_columns: list[int],
+    warm: WarmStarts,
+) -> tuple[list[float], list[float]]:
+    """Safe bounds from the multipliers of each column's last LP (no LP solved): valid for
+    any multipliers, and close to the LP's bound while its optimal basis stays optimal."""
+    ensure_round_to_nearest()
+    m, n = csc.shape
+    box_lo, box_hi = np.ascontiguousarray(box[:, 0]), np.ascontiguousarray(box[:, 1])
+    objective = np.zeros(n)
+    out: tuple[list[float], list[float]] = ([], [])
+    for targets, sense, found in ((columns, 1.0, out[0]), (upper_columns, -1.0, out[1])):
+        for j in targets:
+            y = warm.duals.get((int(j), sense > 0))
+            if y is None or y.shape != (m,):
+                found.append(-math.inf * sense)
+                continue
+            objective[j] = sense
+            bound = _safe_bound(
+                csc.indptr, csc.indices, csc.data, row_lo, row_hi, objective, y, box_lo, box_hi
+            )  # fmt: skip
+            objective[j] = 0.0
+            found.append(sense * bound)
+    return out
 
 
 def _new_solver(csc: sparse.csc_matrix, row_lo, row_hi, box) -> highspy.Highs:
@@ -408,6 +448,7 @@ def _sequence(
                 bounds[q] = _safe_bound(
                     csc.indptr, csc.indices, csc.data, row_lo, row_hi, objective, y, box_lo, box_hi
                 )  # fmt: skip
+                warm.duals[int(order[q]), senses[q] > 0] = y
             objective[order[q]] = 0.0
             if status == _OPTIMAL:
                 stats.optimal += 1
@@ -439,6 +480,7 @@ def _sequence(
                 box_lo, box_hi,
             )  # fmt: skip
             objective[order[r]] = 0.0
+            warm.duals[int(order[r]), senses[r] > 0] = duals[r]
         stats.solved += at - q
         stats.optimal += at - q
         q = at

@@ -412,8 +412,12 @@ def tighten_in_place(
     deadline: float | None = None,
     statistics: LpStatistics | None = None,
     upper_targets: np.ndarray | None = None,
+    reuse: bool = False,
 ) -> bool:
     """:func:`tighten` narrowing ``lo`` and ``hi`` in place; returns ``feasible``.
+
+    With ``reuse``, no LP is solved: each bound is the safe bound of the multipliers of
+    the same target's last LP in ``warm`` (see :func:`.lp_bounds.certified_bounds`).
 
     Its cost depends on the size of ``factors`` and the targets only, not on the length
     of ``lo`` (a window of a long log costs the same wherever it lies).
@@ -436,7 +440,7 @@ def tighten_in_place(
     lower, upper = certified_bounds(
         csc, relaxation.row_lo, relaxation.row_hi, box,
         np.searchsorted(used, chosen).tolist(), warm, deadline, statistics,
-        np.searchsorted(used, upper_chosen).tolist(),
+        np.searchsorted(used, upper_chosen).tolist(), reuse,
     )  # fmt: skip
     if chosen.size:
         lo[chosen] = np.maximum(lo[chosen], lower)
