@@ -15,6 +15,7 @@ Usage::
 - **overhead**: the seed's experiment (``cuikslam paper``'s log, unknown correspondence,
   default level) on a warm 2-worker cluster against one process, best and median of
   ``--repeat-overhead`` runs.
+- **client**: the client's CPU per task on 2 worker processes with that small quantum.
 - **many**: ``--many`` workers simulated as threads of one process with a small work
   quantum (``--quantum-nodes``): per task, nodes explored and replayed, CPU seconds,
   bytes sent each way; the client's seconds per task and the merge. Threads share one
@@ -223,9 +224,38 @@ def part_many(sizes: list[int], quantum_nodes: int) -> dict:
     return {"log": "as in speedup", "rows": rows}
 
 
+def part_client(quantum_nodes: int) -> dict:
+    """The client's CPU per task on a 2-process cluster with a small quantum (many tasks),
+    less what an idle client uses over the same time."""
+    log = many_hypotheses_log()
+    with dask_client(2) as client:
+        idle = time.process_time()
+        time.sleep(5.0)
+        idle_per_s = (time.process_time() - idle) / 5.0
+        many, row = _timed(
+            partial(
+                search_distributed, log, client=client, consistency="hull",
+                quantum_nodes=quantum_nodes, quantum_s=None, strengthen_limit=1,
+            )
+        )  # fmt: skip
+    tail = many.timings["split_s"] + many.timings["merge_s"] + many.timings["finish_s"]
+    busy = row["client_cpu_s"] - idle_per_s * row["wall_s"] - tail
+    row.update(
+        tasks=many.statistics["tasks"],
+        idle_client_cpu_per_s=round(idle_per_s, 4),
+        client_tail_s=round(tail, 3),
+        client_cpu_ms_per_task=round(1000 * busy / many.statistics["tasks"], 2),
+        quantum_nodes=quantum_nodes,
+    )
+    print("client", row, flush=True)
+    return row
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--part", choices=["all", "speedup", "overhead", "many"], default="all")
+    parser.add_argument(
+        "--part", choices=["all", "speedup", "overhead", "many", "client"], default="all"
+    )
     parser.add_argument("--repeat", type=int, default=2, help="speed-up runs (best kept)")
     parser.add_argument("--repeat-overhead", type=int, default=5)
     parser.add_argument("--many", default="16,32,64", help="simulated worker counts")
@@ -245,6 +275,8 @@ def main(argv: list[str] | None = None) -> int:
         out[key] = part_speedup(args.repeat, args.strengthen_limit)
     if args.part in ("all", "overhead"):
         out["overhead"] = part_overhead(args.repeat_overhead)
+    if args.part in ("all", "client"):
+        out["client"] = part_client(args.quantum_nodes)
     if args.part in ("all", "many"):
         many = part_many([int(n) for n in args.many.split(",")], args.quantum_nodes)
         done = {r["workers"] for r in many["rows"]}
