@@ -81,15 +81,18 @@ def run_solve_cluster(
         run = partial(
             run_solve, log_path=log_paths[0], json_path=json_path, csv_path=csv_path,
             truth_path=truth_path, quiet=quiet, console=console, table=table, options=options,
-            time_budget=time_budget, started=started, survivors_path=survivors_path,
+            time_budget=time_budget, survivors_path=survivors_path,
         )  # fmt: skip
         if not cluster:
-            return run()
+            return run(started=started)
         from cuikslam.cluster import dask_client
         from cuikslam.hypotheses.distributed import search_distributed
 
+        connecting = time.perf_counter()
         with dask_client(workers, scheduler) as client:
-            return run(search=partial(search_distributed, client=client))
+            if started is not None:  # the cluster's start-up is not taken from the solve
+                started += time.perf_counter() - connecting
+            return run(started=started, search=partial(search_distributed, client=client))
     for option, value in (("--truth", truth_path), ("--survivors", survivors_path)):
         if value is not None:
             raise CommandError(f"{option} takes one log; {len(log_paths)} were given")
