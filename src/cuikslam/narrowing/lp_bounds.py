@@ -82,8 +82,10 @@ class WarmStarts:
     minima: dict[int, highspy.HighsBasis] = field(default_factory=dict)
     maxima: dict[int, highspy.HighsBasis] = field(default_factory=dict)
     last: highspy.HighsBasis | None = None
-    duals: dict[tuple[int, bool], np.ndarray] = field(default_factory=dict)
-    """The row multipliers of the last LP of each column and direction (True: minimum)."""
+    duals: dict[tuple[int, bool], tuple[int, np.ndarray, np.ndarray]] = field(default_factory=dict)
+    """The row multipliers of the last LP of each column and direction (True: minimum), as
+    (rows, indices of the nonzero ones, their values): a window keeps one per bound, so
+    they are stored small (see ``_sparse``)."""
 
 
 @dataclass
@@ -326,6 +328,14 @@ def _bounds(
     return out, stats
 
 
+def _sparse(y: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """``y`` to keep for :func:`_reused`, small: its nonzero entries in single precision
+    (any multipliers give a safe bound; these move it by about 1e-7 of its terms)."""
+    nonzero = np.flatnonzero(y)
+    index = nonzero.astype(np.int16 if len(y) < 2**15 else np.int32)
+    return len(y), index, y[nonzero].astype(np.float32)
+
+
 def _reused(
     csc: sparse.csc_matrix,
     row_lo: np.ndarray,
@@ -344,10 +354,12 @@ def _reused(
     out: tuple[list[float], list[float]] = ([], [])
     for targets, sense, found in ((columns, 1.0, out[0]), (upper_columns, -1.0, out[1])):
         for j in targets:
-            y = warm.duals.get((int(j), sense > 0))
-            if y is None or y.shape != (m,):
+            stored = warm.duals.get((int(j), sense > 0))
+            if stored is None or stored[0] != m:
                 found.append(-math.inf * sense)
                 continue
+            y = np.zeros(m)
+            y[stored[1]] = stored[2]
             objective[j] = sense
             bound = _safe_bound(
                 csc.indptr, csc.indices, csc.data, row_lo, row_hi, objective, y, box_lo, box_hi
@@ -448,7 +460,7 @@ def _sequence(
                 bounds[q] = _safe_bound(
                     csc.indptr, csc.indices, csc.data, row_lo, row_hi, objective, y, box_lo, box_hi
                 )  # fmt: skip
-                warm.duals[int(order[q]), senses[q] > 0] = y
+                warm.duals[int(order[q]), senses[q] > 0] = _sparse(y)
             objective[order[q]] = 0.0
             if status == _OPTIMAL:
                 stats.optimal += 1
@@ -480,7 +492,7 @@ def _sequence(
                 box_lo, box_hi,
             )  # fmt: skip
             objective[order[r]] = 0.0
-            warm.duals[int(order[r]), senses[r] > 0] = duals[r]
+            warm.duals[int(order[r]), senses[r] > 0] = _sparse(duals[r])
         stats.solved += at - q
         stats.optimal += at - q
         q = at
