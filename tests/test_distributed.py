@@ -240,3 +240,27 @@ def test_one_process_does_not_import_dask(tmp_path: Path) -> None:
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False
     )
     assert result.returncode == 0, result.stderr
+
+
+def test_cli_scheduler_runs_the_search_on_an_existing_cluster(tmp_path: Path) -> None:
+    """``--scheduler ADDRESS``: the command's search runs on a cluster started here (one
+    worker thread of this process, reached over TCP) and finds what the single-process
+    command finds."""
+    distributed = pytest.importorskip(
+        "distributed", reason='needs Dask: pip install "cuikslam[distributed]"'
+    )
+    [log] = _write_logs(tmp_path, range(1))
+    args = [*CLI, "solve", str(log), "-q", "--consistency", "hull", "--time-budget", "2"]
+    alone = subprocess.run(args, capture_output=True, text=True, timeout=300, check=False)
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, protocol="tcp",
+        dashboard_address=":0", memory_limit=0,
+    ) as cluster:  # fmt: skip
+        on_cluster = subprocess.run(
+            [*args, "--scheduler", cluster.scheduler_address], capture_output=True, text=True,
+            timeout=300, check=False,
+        )  # fmt: skip
+    assert alone.returncode == on_cluster.returncode == 0, on_cluster.stderr
+    summary = alone.stdout.splitlines()[0]  # then the witness search, which is timed
+    assert "survivors" in summary
+    assert on_cluster.stdout.splitlines()[0] == summary
