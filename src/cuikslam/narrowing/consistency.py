@@ -8,9 +8,11 @@
   whose LP stopped moving it is not solved again until its window's boxes have shrunk.
   Each pose is bounded by the window where it sits in the middle; a window's LPs are
   solved as one sequence (:func:`.lp_bounds.certified_bounds`: HiGHS, then a compiled
-  simplex from its basis). Correlation-aware, so it removes most of the wrapping effect:
-  within 1.31x of the exact hull on the seed's experiment. Its cost grows linearly with
-  the log (every window has a bounded size), so ``auto`` is ``lp`` at any length.
+  simplex from its basis); on long logs the sweeps from the 4th reuse the last LPs'
+  multipliers instead of solving LPs (``REUSE_FROM``). Correlation-aware, so it removes
+  most of the wrapping effect: within 1.31x of the exact hull on the seed's experiment.
+  Its cost grows linearly with the log (every window has a bounded size), so ``auto`` is
+  ``lp`` at any length.
 - ``lp-split``: ``lp``, then the widest headings are bisected one after the other; each
   half is narrowed at level ``lp`` and the hull of the halves is kept. The linearisations
   are tighter on half the heading interval. About 2.5 times the cost of ``lp``, for
