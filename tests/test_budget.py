@@ -6,7 +6,11 @@ cut point is reached deterministically, without timed assertions.
 
 from __future__ import annotations
 
+import ast
 import itertools
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -64,6 +68,25 @@ def test_deadline_helpers() -> None:
     assert portion(None, 0.5) is None
     soon, later = portion(deadline_after(100.0), 0.1), deadline_after(100.0)
     assert soon is not None and later is not None and soon < later
+
+
+def test_blas_single_thread_limits_scipys_own_blas() -> None:
+    """scipy ships its own OpenBLAS, loaded on first use: loaded inside the block (as the
+    witness search loads scipy.optimize), it must run on one thread too."""
+    code = (
+        "from threadpoolctl import threadpool_info\n"
+        "from cuikslam.budget import blas_single_thread\n"
+        "with blas_single_thread():\n"
+        "    import scipy.optimize\n"
+        "    print([i['num_threads'] for i in threadpool_info() if i['user_api'] == 'blas'])\n"
+    )
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "2", "OMP_NUM_THREADS": "2"}
+    out = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, check=True, env=env
+    ).stdout
+    threads = ast.literal_eval(out.strip().splitlines()[-1])
+    assert len(threads) >= 2  # numpy's and scipy's
+    assert threads == [1] * len(threads)
 
 
 def test_an_expired_deadline_leaves_the_boxes_at_hull() -> None:
