@@ -91,6 +91,7 @@ def _run_world(
             "candidates_per_s": stats["candidates"] / elapsed if elapsed else float("nan"),
             "created": stats["created"],
             "survivors": stats["survivors"],
+            "factors": len((solution.correspondence or {}).get("factors", [])),
             "reported": len(solution.hypotheses),
             "proven": stats.get("proven_hypotheses", 0),
             "undecided": stats.get("undecided_hypotheses", len(solution.hypotheses)),
@@ -158,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
               f"(best of {PAPER_REPEATS}; median {paper['paper_seconds_median']:.3f} s; "
               f"{paper['survivors']} survivors)")  # fmt: skip
     header = ("poses", "seed", "obs", "nodes", "seconds", "cand./s", "frontier", "surv.",
-              "complete", "truth", "proven", "undec.", "decide s", "RSS MB")  # fmt: skip
+              "factors", "complete", "truth", "proven", "undec.", "decide s", "RSS MB")  # fmt: skip
     print(" ".join(f"{h:>8}" for h in header))
     if args.dense:
         worlds = [(n, 16, ("door", "corridor"), DENSE) for n in DENSE_POSES]
@@ -175,7 +176,8 @@ def main(argv: list[str] | None = None) -> int:
             rows.append(r)
             print(f"{r['poses']:>8} {r['seed']:>8} {r['observations']:>8} "
                   f"{r['branch_points']:>8} {r['seconds']:>8.2f} {r['candidates_per_s']:>8.0f} "
-                  f"{r['peak_frontier']:>8} {r['survivors']:>8} {r['complete']!s:>8} "
+                  f"{r['peak_frontier']:>8} {r['survivors']:>8} {r['factors']:>8} "
+                  f"{r['complete']!s:>8} "
                   f"{r['true_hypothesis_kept']!s:>8} {r['proven']:>8} {r['undecided']:>8} "
                   f"{r['decide_seconds']:>8.2f} {r['peak_rss_mb']:>8.0f}")  # fmt: skip
             sys.stdout.flush()

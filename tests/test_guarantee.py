@@ -25,12 +25,17 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, assume, given, note, settings
 from hypothesis import strategies as st
 from hypothesis.errors import UnsatisfiedAssumption
 
 from cuikslam.hypotheses import solve_unknown
+from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
+from cuikslam.hypotheses.problem import build_problem
+from cuikslam.hypotheses.search import Explorer
+from cuikslam.narrowing.propagation import DEFAULT_RTOL
 from cuikslam.results.solution import Solution
 from cuikslam.solver import solve
 from worlds import (
@@ -241,6 +246,30 @@ def test_class_priors_the_truth_meets_keep_it(
     """Class priors that hold in the true world (exact count, separation up to the closest
     true pair, region touching the landmarks) never refute the truth."""
     check_search(world.with_class_priors(share, margin, extra), naming, "hull")
+
+
+@pytest.mark.parametrize("naming", ["none", "mixed"])
+@ci(60)
+@given(world=worlds(**SMALL))
+def test_bisection_never_refutes_the_true_correspondence(world: World, naming: str) -> None:
+    """The true correspondence's node (its decisions replayed), bisected part by part
+    with its negative information, never contracts to empty in every part."""
+    with reported(world, naming):
+        assert_valid(world, naming)
+        problem = build_problem(world.log(naming))
+        explorer = Explorer(problem, DEFAULT_RTOL, "hull", 0)
+        named = {name: i for i, name in enumerate(problem.named)}
+        new: dict[str, int] = {}
+        prefix = [
+            named[a] if a in named else new.setdefault(a, len(named) + len(new))
+            for a in (world.truth.assignment[d.position] for d in problem.decisions)
+        ]
+        node = explorer.replay(prefix)
+        assert node is not None, "the search refuted the true correspondence"
+        lo, hi, arrays = explorer.graph.standalone(node.overlay)
+        poses = np.array(sorted(problem.pose_x.values()), dtype=np.int64)
+        bisection = Bisection(lo, hi, arrays, poses, explorer.landmark_xs(node))
+        assert refute_by_bisection([bisection], None, 200) == [False]
 
 
 OFFSETS = {"sensors": ("none",), "offsets": True}

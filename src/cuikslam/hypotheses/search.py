@@ -27,6 +27,7 @@ import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.hypotheses._shared import EMPTY_OVERLAY, Overlay, SharedGraph
+from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
 from cuikslam.hypotheses.local import LocalCheck
 from cuikslam.hypotheses.problem import (
     Decision,
@@ -64,6 +65,16 @@ BEST_ATTEMPTS = 10
 """Beyond ``strengthen_limit`` survivors, the best-ranked are tried until one is not refuted."""
 DEFAULT_STRENGTHEN_DURING = SolveOptions.strengthen_during
 """Decisions (the first ones) whose children get ``lp`` during the search when ambiguous."""
+BISECTION_SHARE = 0.5
+"""Share of the search's time left that bisection may use on the survivors."""
+BISECTION_PARTS = 512
+"""Parts each survivor's bisection may narrow at most."""
+BISECTION_TOTAL_PARTS = 4096
+"""Parts the bisections of all survivors together may narrow at most."""
+BISECTION_PARTS_PER_NODE = 4
+"""Parts the bisections may narrow per node the search created (at least
+``BISECTION_MIN_PARTS``): bisection costs about as much as the search itself did."""
+BISECTION_MIN_PARTS = 256
 MAINTAIN_EVERY = 1024
 """Node expansions between two looks at the shared graph's housekeeping."""
 MAX_TALLIED = 100_000
@@ -96,6 +107,8 @@ class SearchStatistics:
     """Children whose window around the decided pose is inconsistent in that pose's frame."""
     refuted_by_consistency: int = 0
     """Nodes or survivors of hull consistency refuted by the stronger consistency level."""
+    refuted_by_bisection: int = 0
+    """Survivors proven impossible by bisecting their boxes (:mod:`.bisection`)."""
     refuted_by_class_prior: int = 0
     """Children breaking a class prior of the log: one landmark too many of a class, or two
     distinct landmarks of a class closer than its separation."""
@@ -619,6 +632,37 @@ def _hypothesis(explorer: Explorer, node: Node) -> Hypothesis:
     )
 
 
+def _bisect_survivors(
+    explorer: Explorer, survivors: list[Node], limit: int, messages: list[str]
+) -> list[Node]:
+    """The survivors that bisection does not prove impossible (:mod:`.bisection`), when
+    there are 2 to ``limit`` of them; it may use ``BISECTION_SHARE`` of the time left to
+    the deadline and ``BISECTION_PARTS`` parts per survivor, in all
+    ``BISECTION_PARTS_PER_NODE`` per node created by the search, between
+    ``BISECTION_MIN_PARTS`` and ``BISECTION_TOTAL_PARTS``."""
+    if len(survivors) < 2 or len(survivors) > limit:
+        return survivors  # a lone survivor is left to the witness search to prove
+    deadline = explorer.deadline
+    if deadline is not None:
+        now = time.perf_counter()
+        deadline = now + BISECTION_SHARE * max(0.0, deadline - now)
+    pose_xs = np.array(sorted(explorer.problem.pose_x.values()), dtype=np.int64)
+    bisections = []
+    for node in survivors:
+        lo, hi, arrays = explorer.graph.standalone(node.overlay)
+        bisections.append(Bisection(lo, hi, arrays, pose_xs, explorer.landmark_xs(node)))
+    total = BISECTION_PARTS_PER_NODE * explorer.stats.created
+    total = min(BISECTION_TOTAL_PARTS, max(BISECTION_MIN_PARTS, total))
+    refuted = refute_by_bisection(bisections, deadline, BISECTION_PARTS, total)
+    explorer.stats.refuted_by_bisection += sum(refuted)
+    if any(refuted):
+        messages.append(
+            f"bisection proved {sum(refuted)} of {len(survivors)} survivors impossible "
+            "(every part of their boxes contracts to empty)"
+        )
+    return [n for n, r in zip(survivors, refuted, strict=True) if not r]
+
+
 def _strengthen_survivors(
     explorer: Explorer, survivors: list[Node], level: str, limit: int, messages: list[str]
 ) -> tuple[list[Node], str]:
@@ -759,13 +803,14 @@ def finish_search(
             f"subtrees unexplored ({100 * (1 - stats.explored_fraction):.1f}% of the tree; "
             f"first: {shown}); the result is INCOMPLETE: the true hypothesis may be in them"
         )
+    survivors = _bisect_survivors(explorer, found, strengthen_limit, messages)
     survivors, level = _strengthen_survivors(
-        explorer, found, consistency, strengthen_limit, messages
+        explorer, survivors, consistency, strengthen_limit, messages
     )
     alive = {tuple(n.decisions()) for n in survivors}
     for node in found:
         if tuple(node.decisions()) not in alive:  # refuted by the stronger level
-            tally.discard(node)
+            tally.discard(node)  # (or by bisection)
             stats.survivors -= 1
     hypotheses = sorted(
         (_hypothesis(explorer, n) for n in survivors), key=lambda h: (h.n_landmarks, h.box_size)

@@ -1,0 +1,173 @@
+"""Deciding one hypothesis by bisection: split its box until every part is proven empty.
+
+The search leaves a hypothesis ``not refuted`` when narrowing its whole box finds no
+contradiction. That box is wide, and a contradiction may hold in each half of it without
+showing in the whole (the relaxations lose precision with width). Bisection splits the
+box along its widest pose or landmark variable, narrows each half to the fixpoint of the
+hypothesis' own constraints (its factor rows, negative information included), and
+continues on what is left. When every part is proven empty, the hypothesis is **proven
+impossible**: the parts cover the box, which holds every solution.
+
+It stops at its time or work budget, or when it runs out of parts; it never proves a
+hypothesis consistent (that takes a verified witness, :mod:`.witness`), but it hands the
+parts that survive longest to the witness search as starting boxes.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cuikslam.narrowing._propagate import INCONSISTENT, propagate_arrays
+from cuikslam.narrowing.consistency import Arrays, _factors_of
+from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL
+
+__all__ = ["Bisection"]
+
+HEADING_SCALE = 10.0
+"""Metres a radian of heading counts for when choosing the widest variable (a heading
+error moves what a pose sees 10 m away by about this much per radian)."""
+APPLICATIONS_PER_PART = 200_000
+"""Work budget of one part's narrowing (stopping early is sound, only weaker)."""
+
+
+@dataclass
+class Bisection:
+    """A resumable bisection of one hypothesis' box.
+
+    Parameters
+    ----------
+    lo, hi : ndarray
+        The hypothesis' narrowed bounds (every variable of its graph).
+    arrays : Arrays
+        Its factor rows, linked (see :meth:`SharedGraph.standalone`).
+    poses : ndarray of int
+        x variables of its poses; ``(x, y, theta)`` are consecutive.
+    landmarks : ndarray of int
+        x variables of its landmarks; ``(x, y)`` are consecutive.
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+    arrays: Arrays
+    poses: np.ndarray
+    landmarks: np.ndarray
+    parts: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    unsplit: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
+    """Parts with no finite variable left to split (kept for the witness search)."""
+    refuted_parts: int = 0
+    narrowed_parts: int = 0
+
+    def __post_init__(self) -> None:
+        self.parts = [(self.lo.copy(), self.hi.copy())]
+        xs = np.concatenate([self.poses, self.poses + 1, self.landmarks, self.landmarks + 1])
+        ts = self.poses + 2
+        self._split_vars = np.concatenate([xs, ts])
+        self._scale = np.concatenate([np.ones(len(xs)), np.full(len(ts), HEADING_SCALE)])
+
+    @property
+    def refuted(self) -> bool:
+        """True when every part is proven empty: the hypothesis is impossible."""
+        return not self.parts and not self.unsplit
+
+    @property
+    def exhausted(self) -> bool:
+        """True when no part is left to split (refuted, or only unsplittable parts)."""
+        return not self.parts
+
+    def run(self, deadline: float | None, max_parts: int) -> None:
+        """Split parts and narrow the halves, up to ``max_parts`` narrowed halves (fewer at
+        ``deadline``)."""
+        stop = self.narrowed_parts + max_parts
+        while self.parts and self.narrowed_parts < stop:
+            if deadline is not None and time.perf_counter() >= deadline:
+                return
+            lo, hi = self.parts.pop()
+            var = self._widest(lo, hi)
+            if var < 0:
+                self.unsplit.append((lo, hi))
+                continue
+            mid = 0.5 * lo[var] + 0.5 * hi[var]
+            halves = []
+            for a, b in ((lo[var], mid), (mid, hi[var])):
+                plo, phi = lo.copy(), hi.copy()
+                plo[var], phi[var] = a, b
+                if self._narrow(plo, phi, var):
+                    halves.append((plo, phi))
+                else:
+                    self.refuted_parts += 1
+            # depth first, the half with the smaller box on top: parts stay few
+            halves.sort(key=lambda p: -self._size(*p))
+            self.parts.extend(halves)
+
+    def best(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The most recently narrowed part (the deepest), or None when all are refuted."""
+        if self.parts:
+            return self.parts[-1]
+        return self.unsplit[-1] if self.unsplit else None
+
+    def _narrow(self, lo: np.ndarray, hi: np.ndarray, var: int) -> bool:
+        """Narrow a part after ``var`` was split; False when it is proven empty."""
+        a = self.arrays
+        touched = _factors_of(a, var)
+        self.narrowed_parts += 1
+        status, _ = propagate_arrays(
+            lo, hi, a.factors, a.head, a.entry_factor, a.entry_next, touched,
+            DEFAULT_RTOL, DEFAULT_ROUNDS, APPLICATIONS_PER_PART,
+        )  # fmt: skip
+        return status != INCONSISTENT
+
+    def _widest(self, lo: np.ndarray, hi: np.ndarray) -> int:
+        """The pose or landmark variable to split: the widest (headings scaled), or -1 when
+        none is finite and wider than a few ulps."""
+        v = self._split_vars
+        with np.errstate(invalid="ignore", over="ignore"):
+            width = (hi[v] - lo[v]) * self._scale
+            mid = 0.5 * lo[v] + 0.5 * hi[v]
+        ok = np.isfinite(width) & (mid > lo[v]) & (mid < hi[v])
+        if not np.any(ok):
+            return -1
+        width = np.where(ok, width, -1.0)
+        return int(v[int(np.argmax(width))])
+
+    def _size(self, lo: np.ndarray, hi: np.ndarray) -> float:
+        v = self._split_vars
+        with np.errstate(invalid="ignore", over="ignore"):
+            width = np.nan_to_num((hi[v] - lo[v]) * self._scale, posinf=math.inf)
+        return float(np.sum(np.minimum(width, 1e6)))
+
+
+FIRST_ROUND_PARTS = 8
+"""Parts each hypothesis narrows in the first round (then twice as many each round)."""
+
+
+def refute_by_bisection(
+    bisections: list[Bisection],
+    deadline: float | None,
+    max_parts: int,
+    max_total_parts: int | None = None,
+) -> list[bool]:
+    """Which of ``bisections`` end proven impossible, sharing one budget round-robin.
+
+    Each round gives every open bisection its quota of parts (8, then twice as many each
+    round), so that the cheap refutations (a part or two) come first; a bisection stops
+    when refuted, after ``max_parts`` parts, or at ``deadline``; all stop when together
+    they have narrowed ``max_total_parts`` parts (give or take one split).
+    """
+    quota = FIRST_ROUND_PARTS
+    left = math.inf if max_total_parts is None else max_total_parts
+    while left > 0 and (deadline is None or time.perf_counter() < deadline):
+        open_ = [b for b in bisections if not b.exhausted and b.narrowed_parts < max_parts]
+        if not open_:
+            break
+        for b in open_:
+            before = b.narrowed_parts
+            b.run(deadline, int(min(quota, max_parts - before, left)))
+            left -= b.narrowed_parts - before
+            if left <= 0:
+                break
+        quota *= 2
+    return [b.refuted for b in bisections]

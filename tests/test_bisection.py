@@ -1,0 +1,97 @@
+"""Bisection of the survivors (``cuikslam.hypotheses.bisection``): it refutes hypotheses
+that narrowing the whole box leaves, never the truth, and always stops.
+
+The log of ``tests/data/bisection`` comes from the independent generator (``worlds.py``):
+unlabelled observations of two classes, a sensor record, landmark priors; its exact truth
+is beside it. The soundness of bisection on random worlds is tested in
+``test_guarantee.py`` (every search there bisects its survivors).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import cuikslam.hypotheses.search as search
+from cuikslam.hypotheses import solve_unknown
+from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
+from cuikslam.hypotheses.problem import build_problem
+from cuikslam.hypotheses.search import Explorer
+from cuikslam.log import Log, read_log_file
+from cuikslam.narrowing.propagation import DEFAULT_RTOL
+from worlds import Truth, correspondence, true_index, truth_misses
+
+LOG = Path(__file__).parent / "data" / "bisection" / "bisection-refutes.jsonl"
+
+
+@pytest.fixture(scope="module")
+def log() -> Log:
+    return read_log_file(LOG)
+
+
+@pytest.fixture(scope="module")
+def truth() -> Truth:
+    return Truth.from_file(LOG.with_name(LOG.stem + ".truth.json"))
+
+
+def _bisections(log: Log, prefixes: list[list[int]] | None = None) -> list[Bisection]:
+    """Bisections of the search's survivors (or of the nodes of ``prefixes``)."""
+    problem = build_problem(log)
+    explorer = Explorer(problem, DEFAULT_RTOL, "hull", 0)
+    poses = np.array(sorted(problem.pose_x.values()), dtype=np.int64)
+    out = []
+    for prefix in prefixes or []:
+        node = explorer.replay(prefix)
+        assert node is not None
+        lo, hi, arrays = explorer.graph.standalone(node.overlay)
+        out.append(Bisection(lo, hi, arrays, poses, explorer.landmark_xs(node)))
+    return out
+
+
+def test_bisection_refutes_survivors_and_keeps_the_truth(
+    log: Log, truth: Truth, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    bisected = solve_unknown(log, consistency="hull")
+    monkeypatch.setattr(search, "BISECTION_MIN_PARTS", 0)
+    monkeypatch.setattr(search, "BISECTION_PARTS_PER_NODE", 0)
+    whole = solve_unknown(log, consistency="hull")
+    assert bisected.complete and whole.complete
+    assert whole.statistics["refuted_by_bisection"] == 0
+    refuted = bisected.statistics["refuted_by_bisection"]
+    assert refuted > 0
+    assert len(bisected.hypotheses) == len(whole.hypotheses) - refuted
+    named = {r.landmark for r in log.landmark_priors}
+    kept = {correspondence(h.assignment, named) for h in bisected.hypotheses}
+    assert kept < {correspondence(h.assignment, named) for h in whole.hypotheses}
+    i = true_index(bisected, truth, named)
+    assert i >= 0, "bisection refuted the true correspondence"
+    assert truth_misses(bisected.hypotheses[i], truth, named) == []
+    assert any("bisection proved" in m for m in bisected.messages)
+
+
+def test_a_box_with_nothing_to_split_ends_the_bisection(log: Log, truth: Truth) -> None:
+    (whole,) = _bisections(log, [[]])
+    nothing = Bisection(
+        whole.lo, whole.hi, whole.arrays, np.zeros(0, np.int64), np.zeros(0, np.int64)
+    )
+    assert refute_by_bisection([nothing], None, 100) == [False]
+    assert nothing.exhausted and not nothing.refuted
+    assert nothing.narrowed_parts == 0
+    lo, hi = nothing.best()
+    assert np.array_equal(lo, whole.lo) and np.array_equal(hi, whole.hi)
+
+
+def test_the_total_budget_is_shared_and_kept(log: Log) -> None:
+    bisections = _bisections(log, [[], [], []])
+    refute_by_bisection(bisections, None, max_parts=1000, max_total_parts=50)
+    total = sum(b.narrowed_parts for b in bisections)
+    assert 50 <= total <= 51  # a split narrows two halves
+    assert all(b.narrowed_parts >= 8 for b in bisections)  # round-robin: each got a turn
+
+
+def test_a_deadline_in_the_past_stops_before_any_work(log: Log) -> None:
+    (b,) = _bisections(log, [[]])
+    assert refute_by_bisection([b], deadline=0.0, max_parts=100) == [False]
+    assert b.narrowed_parts == 0 and len(b.parts) == 1
