@@ -330,10 +330,12 @@ def _bounds(
 
 def _sparse(y: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
     """``y`` to keep for :func:`_reused`, small: its nonzero entries in single precision
-    (any multipliers give a safe bound; these move it by about 1e-7 of its terms)."""
+    (any multipliers give a safe bound; these move it by about 1e-7 of its terms, and
+    those beyond single precision's range are clipped to it rather than made infinite)."""
     nonzero = np.flatnonzero(y)
     index = nonzero.astype(np.int16 if len(y) < 2**15 else np.int32)
-    return len(y), index, y[nonzero].astype(np.float32)
+    top = float(np.finfo(np.float32).max)
+    return len(y), index, np.clip(y[nonzero], -top, top).astype(np.float32)
 
 
 def _reused(
