@@ -119,8 +119,8 @@ def worker(log_path: str, level: str) -> dict:
     """Solve one log in this process (known correspondence) and measure it."""
     from cuikslam.graph.kinematic_graph import KinematicGraph
     from cuikslam.log.reader import read_log_file
-    from cuikslam.narrowing.consistency import Arrays, StrengthenReport, resolve_level, strengthen
-    from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, propagate
+    from cuikslam.narrowing.consistency import StrengthenReport, resolve_level, strengthen
+    from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, Arrays, propagate
     from cuikslam.solver import warm_up
 
     warm_up()
@@ -129,8 +129,7 @@ def worker(log_path: str, level: str) -> dict:
     graph = KinematicGraph.from_log(log)
     result = propagate(graph, rtol=DEFAULT_RTOL)
     hull_s = time.perf_counter() - start
-    head, entry_factor, entry_next = graph.adjacency()
-    arrays = Arrays(graph.factor_table(), head, entry_factor, entry_next)
+    arrays = Arrays.of(graph)
     lo, hi = result.lo.copy(), result.hi.copy()
     report = StrengthenReport()
     chosen = resolve_level(level, len(graph.pose_ids))

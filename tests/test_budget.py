@@ -20,13 +20,8 @@ from cuikslam.cli.main import build_parser
 from cuikslam.graph import KinematicGraph
 from cuikslam.hypotheses.witness import certify
 from cuikslam.narrowing import consistency, lp_bounds, propagate
-from cuikslam.narrowing.consistency import (
-    BUDGET_SUFFIX,
-    Arrays,
-    StrengthenReport,
-    strengthen,
-)
-from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL
+from cuikslam.narrowing.consistency import BUDGET_SUFFIX, StrengthenReport, strengthen
+from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, Arrays, Status
 from cuikslam.results.solution import NOT_REFUTED, PROVEN, check_truth
 from cuikslam.simulate import simulate_paper
 from cuikslam.solver import solve
@@ -35,8 +30,7 @@ from cuikslam.solver import solve
 def _arrays(log) -> tuple[KinematicGraph, Arrays, np.ndarray, np.ndarray]:
     graph = KinematicGraph.from_log(log)
     result = propagate(graph)
-    head, entry_factor, entry_next = graph.adjacency()
-    return graph, Arrays(graph.factor_table(), head, entry_factor, entry_next), result.lo, result.hi
+    return graph, Arrays.of(graph), result.lo, result.hi
 
 
 def _contains_truth(graph: KinematicGraph, lo: np.ndarray, hi: np.ndarray, truth) -> bool:
@@ -94,9 +88,9 @@ def test_an_expired_deadline_leaves_the_boxes_at_hull() -> None:
     _, arrays, lo, hi = _arrays(log)
     lo0, hi0 = lo.copy(), hi.copy()
     report = StrengthenReport()
-    status, _ = strengthen(arrays, lo, hi, "lp", DEFAULT_RTOL, DEFAULT_ROUNDS,
-                           deadline=deadline_after(0.0), report=report)  # fmt: skip
-    assert status == consistency.CONSISTENT
+    result = strengthen(arrays, lo, hi, "lp", DEFAULT_RTOL, DEFAULT_ROUNDS,
+                        deadline=deadline_after(0.0), report=report)  # fmt: skip
+    assert result.status is Status.CONSISTENT and result.lo is lo and result.hi is hi
     assert report.level == "hull" and report.budget_exhausted
     assert np.array_equal(lo, lo0) and np.array_equal(hi, hi0)
 
@@ -118,9 +112,9 @@ def test_cut_at_every_point_the_truth_stays_inside(level: str, monkeypatch) -> N
         monkeypatch.setattr(lp_bounds, "expired", clock)
         lo, hi = lo0.copy(), hi0.copy()
         report = StrengthenReport()
-        status, _ = strengthen(arrays, lo, hi, level, DEFAULT_RTOL, DEFAULT_ROUNDS,
-                               deadline=deadline_after(3600.0), report=report)  # fmt: skip
-        assert status == consistency.CONSISTENT
+        result = strengthen(arrays, lo, hi, level, DEFAULT_RTOL, DEFAULT_ROUNDS,
+                            deadline=deadline_after(3600.0), report=report)  # fmt: skip
+        assert result.status is Status.CONSISTENT
         assert _contains_truth(graph, lo, hi, truth), (n, report)
         assert np.all(lo >= lo0) and np.all(hi <= hi0)  # never wider than the fixpoint
         assert report.budget_exhausted == (report.level != level), (n, report.level)

@@ -206,9 +206,9 @@ def test_lp_tightening_keeps_the_truth_of_relative_worlds(data):
     result = propagate(world.graph)
     assert result.status is Status.CONSISTENT
     targets = np.arange(world.graph.n_variables)
-    lo, hi, feasible = tighten(world.graph.factor_table(), result.lo, result.hi, targets)
-    assert feasible, world.description
-    assert world.lost(lo, hi) == [], world.description
+    tightened = tighten(world.graph.factor_table(), result.lo, result.hi, targets)
+    assert tightened.status is Status.CONSISTENT, world.description
+    assert world.lost(tightened.lo, tightened.hi) == [], world.description
 
 
 def test_a_scan_per_sensor_offset_each_sees_distinct_landmarks():

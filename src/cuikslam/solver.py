@@ -19,9 +19,8 @@ from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.hypotheses.search import solve_unknown
 from cuikslam.hypotheses.witness import certify
 from cuikslam.log.records import Log
-from cuikslam.narrowing._propagate import INCONSISTENT
-from cuikslam.narrowing.consistency import Arrays, StrengthenReport, resolve_level, strengthen
-from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Status, propagate
+from cuikslam.narrowing.consistency import StrengthenReport, resolve_level, strengthen
+from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
 from cuikslam.options import SolveOptions
 from cuikslam.results.solution import Hypothesis, Solution
 
@@ -208,15 +207,12 @@ def _solve_known(
     result = propagate(graph, rtol=rtol)
     report = StrengthenReport(level=consistency)
     if not result.is_empty:
-        head, entry_factor, entry_next = graph.adjacency()
-        arrays = Arrays(graph.factor_table(), head, entry_factor, entry_next)
-        status, applications = strengthen(
-            arrays, result.lo, result.hi, consistency, rtol, DEFAULT_ROUNDS, progress,
-            deadline=portion(deadline, STRENGTHEN_SHARE), report=report,
+        strengthened = strengthen(
+            Arrays.of(graph), result.lo, result.hi, consistency, rtol, DEFAULT_ROUNDS,
+            progress, deadline=portion(deadline, STRENGTHEN_SHARE), report=report,
         )  # fmt: skip
-        result.applications += applications
-        if status == INCONSISTENT:
-            result.status = Status.INCONSISTENT
+        result.applications += strengthened.applications
+        result.status = strengthened.status
     if progress is not None:
         progress(1, 1)
     elapsed = time.perf_counter() - start

@@ -34,8 +34,7 @@ from cuikslam.graph.encoding import KIND, N_SLOTS, NO_FACTOR
 from cuikslam.hypotheses import _kernels as k
 from cuikslam.hypotheses._gates import gate_many, pairs_within_reach
 from cuikslam.narrowing._factors import fresh_memory
-from cuikslam.narrowing._propagate import INCONSISTENT
-from cuikslam.narrowing.consistency import Arrays
+from cuikslam.narrowing.propagation import Arrays, Status
 
 __all__ = ["EMPTY_OVERLAY", "Overlay", "SharedGraph"]
 
@@ -180,7 +179,7 @@ class SharedGraph:
             touched, narrowed, self.rtol, self.max_rounds, False,
         )  # fmt: skip
         self.applications += applications
-        if status == INCONSISTENT:
+        if Status(status) is Status.INCONSISTENT:
             return None
         if n_changed == 0:
             idx, lo, hi = cur.idx, cur.lo, cur.hi

@@ -21,9 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cuikslam.narrowing._propagate import INCONSISTENT, propagate_arrays
-from cuikslam.narrowing.consistency import Arrays, _factors_of
-from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL
+from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, Arrays, narrow
 
 __all__ = ["Bisection"]
 
@@ -112,13 +110,11 @@ class Bisection:
     def _narrow(self, lo: np.ndarray, hi: np.ndarray, var: int) -> bool:
         """Narrow a part after ``var`` was split; False when it is proven empty."""
         a = self.arrays
-        touched = _factors_of(a, var)
         self.narrowed_parts += 1
-        status, _ = propagate_arrays(
-            lo, hi, a.factors, a.head, a.entry_factor, a.entry_next, touched,
-            DEFAULT_RTOL, DEFAULT_ROUNDS, APPLICATIONS_PER_PART,
-        )  # fmt: skip
-        return status != INCONSISTENT
+        result = narrow(
+            a, lo, hi, a.factors_of(var), DEFAULT_RTOL, DEFAULT_ROUNDS, APPLICATIONS_PER_PART
+        )
+        return not result.is_empty
 
     def _widest(self, lo: np.ndarray, hi: np.ndarray) -> int:
         """The pose or landmark variable to split: the widest (headings scaled), or -1 when

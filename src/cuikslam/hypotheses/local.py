@@ -25,7 +25,7 @@ from cuikslam._jit import jit
 from cuikslam.graph.encoding import N_SLOTS, ODOMETRY, XA, XB, YB
 from cuikslam.hypotheses import _kernels as k
 from cuikslam.hypotheses._shared import Overlay, SharedGraph
-from cuikslam.narrowing._propagate import INCONSISTENT, propagate_arrays
+from cuikslam.narrowing.propagation import Arrays, narrow
 
 __all__ = ["LocalCheck"]
 
@@ -88,11 +88,8 @@ class LocalCheck:
         entry_factor = np.zeros(N_SLOTS * len(local), dtype=np.int64)
         entry_next = np.zeros_like(entry_factor)
         k.link_rows(local, len(local), head, entry_factor, entry_next)
-        status, _ = propagate_arrays(
-            lo, hi, local, head, entry_factor, entry_next, np.arange(len(local)),
-            self.rtol, self.rounds, MAX_APPLICATIONS,
-        )  # fmt: skip
-        if status == INCONSISTENT:
+        arrays = Arrays(local, head, entry_factor, entry_next)
+        if narrow(arrays, lo, hi, None, self.rtol, self.rounds, MAX_APPLICATIONS).is_empty:
             self.refuted += 1
             return True
         return False

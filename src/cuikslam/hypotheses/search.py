@@ -37,7 +37,6 @@ from cuikslam.hypotheses.problem import (
     unseen_rows,
 )
 from cuikslam.log.records import Log
-from cuikslam.narrowing._propagate import INCONSISTENT
 from cuikslam.narrowing.consistency import (
     DEFAULT_LEVEL,
     StrengthenReport,
@@ -420,11 +419,11 @@ class Explorer:
         graph = self.graph
         lo, hi, arrays = graph.standalone(node.overlay)
         report = StrengthenReport()
-        status, applications = strengthen(
+        result = strengthen(
             arrays, lo, hi, level, graph.rtol, DEFAULT_ROUNDS, deadline=self.deadline, report=report
         )
-        self.stats.operator_applications += applications
-        if status == INCONSISTENT:
+        self.stats.operator_applications += result.applications
+        if result.is_empty:
             self.stats.refuted_by_consistency += 1
             return None
         overlay = graph.overlay_of(lo, hi, node.overlay.rows)

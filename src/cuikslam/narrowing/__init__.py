@@ -1,5 +1,16 @@
-"""Narrowing operators of the factors and their chaotic iteration to a fixpoint."""
+"""Narrowing operators of the factors and their chaotic iteration to a fixpoint.
 
-from cuikslam.narrowing.propagation import DEFAULT_RTOL, Propagation, Status, propagate
+Every narrowing function follows one protocol (see :mod:`.propagation`): it narrows the
+bounds it is given in place and returns a :class:`Propagation` with a :class:`Status`.
+"""
 
-__all__ = ["DEFAULT_RTOL", "Propagation", "Status", "propagate"]
+from cuikslam.narrowing.propagation import (
+    DEFAULT_RTOL,
+    Arrays,
+    Propagation,
+    Status,
+    narrow,
+    propagate,
+)
+
+__all__ = ["DEFAULT_RTOL", "Arrays", "Propagation", "Status", "narrow", "propagate"]

@@ -50,13 +50,9 @@ from cuikslam.graph.encoding import (
     XB,
 )
 from cuikslam.narrowing._factors import fresh_memory
-from cuikslam.narrowing._propagate import (
-    CONSISTENT,
-    INCONSISTENT,
-    propagate_arrays,
-    propagate_buffered,
-)
-from cuikslam.narrowing.relaxation import LpStatistics, WarmStarts, tighten_in_place
+from cuikslam.narrowing._propagate import propagate_buffered
+from cuikslam.narrowing.propagation import Arrays, Propagation, Status, narrow
+from cuikslam.narrowing.relaxation import LpStatistics, WarmStarts, tighten
 
 __all__ = [
     "BUDGET_SUFFIX",
@@ -122,16 +118,6 @@ class StrengthenReport:
     """Rounds of the polytope-hull operator run (over all windows, halves included)."""
     lp: LpStatistics = field(default_factory=LpStatistics)
     """LP counts: solved, optimal, stopped by a limit, retried, skipped at the deadline."""
-
-
-@dataclass
-class Arrays:
-    """A graph as the compiled kernels see it (see :mod:`cuikslam.graph.encoding`)."""
-
-    factors: np.ndarray
-    head: np.ndarray
-    entry_factor: np.ndarray
-    entry_next: np.ndarray
 
 
 def resolve_level(level: str, n_poses: int) -> str:
@@ -267,7 +253,7 @@ def strengthen(
     *,
     deadline: float | None = None,
     report: StrengthenReport | None = None,
-) -> tuple[int, int]:
+) -> Propagation:
     """Narrow ``lo``/``hi`` in place beyond the fixpoint, to the given consistency level.
 
     Parameters
@@ -295,9 +281,10 @@ def strengthen(
 
     Returns
     -------
-    tuple of int
-        ``(status, operator applications)``, status CONSISTENT or INCONSISTENT (a proof:
-        whatever the deadline, an empty box is never a guess).
+    Propagation
+        Holding ``lo`` and ``hi`` themselves and the operator applications of the level's
+        propagations; ``Status.INCONSISTENT`` is a proof (whatever the deadline, an empty
+        box is never a guess), otherwise ``Status.CONSISTENT``.
     """
     ensure_round_to_nearest()
     if level not in LEVELS:
@@ -305,10 +292,10 @@ def strengthen(
     report = report if report is not None else StrengthenReport()
     report.level = "hull"
     if level == "hull":
-        return CONSISTENT, 0
+        return Propagation(lo, hi, Status.CONSISTENT, 0)
     if expired(deadline):
         report.budget_exhausted = True
-        return CONSISTENT, 0
+        return Propagation(lo, hi, Status.CONSISTENT, 0)
     solved_before = report.lp.solved
     status, applications, finished = _polytope_rounds(
         arrays, lo, hi, rtol, max_rounds, progress, deadline, report
@@ -319,15 +306,15 @@ def strengthen(
         report.level = "lp" + BUDGET_SUFFIX
     if not finished:
         report.budget_exhausted = True
-    if status == INCONSISTENT or level == "lp" or not finished:
-        return status, applications
+    if status is Status.INCONSISTENT or level == "lp" or not finished:
+        return Propagation(lo, hi, status, applications)
     turning = np.isin(arrays.factors[:, KIND], (ODOMETRY, ROTATION))
     headings = np.unique(arrays.factors[turning][:, [TA, TB]])
     for _ in range(SPLIT_HEADINGS):
         if expired(deadline):
             report.budget_exhausted = True
             report.level = "lp-split" + BUDGET_SUFFIX
-            return CONSISTENT, applications
+            return Propagation(lo, hi, Status.CONSISTENT, applications)
         widths = hi[headings] - lo[headings]
         if headings.size == 0 or not np.isfinite(widths).any() or widths.max() <= 0:
             break
@@ -337,13 +324,10 @@ def strengthen(
         for a, b in ((lo[v], middle), (middle, hi[v])):
             half_lo, half_hi = lo.copy(), hi.copy()
             half_lo[v], half_hi[v] = a, b
-            status, count = propagate_arrays(
-                half_lo, half_hi, arrays.factors, arrays.head, arrays.entry_factor,
-                arrays.entry_next, _factors_of(arrays, v), rtol,
-                max_rounds, 2**62,
-            )  # fmt: skip
-            applications += count
-            if status != INCONSISTENT:
+            halved = narrow(arrays, half_lo, half_hi, arrays.factors_of(v), rtol, max_rounds)
+            applications += halved.applications
+            status = halved.status
+            if status is not Status.INCONSISTENT:
                 # each half is narrowed as far as the deadline allows (at least propagated),
                 # so the hull of the two halves is sound however early it stops
                 status, count, finished = _polytope_rounds(
@@ -353,15 +337,15 @@ def strengthen(
                 if not finished:
                     report.budget_exhausted = True
                     report.level = "lp-split" + BUDGET_SUFFIX
-            if status != INCONSISTENT:
+            if status is not Status.INCONSISTENT:
                 halves.append((half_lo, half_hi))
         if not halves:
-            return INCONSISTENT, applications
+            return Propagation(lo, hi, Status.INCONSISTENT, applications)
         lo[:] = np.min([h[0] for h in halves], axis=0)
         hi[:] = np.max([h[1] for h in halves], axis=0)
     if not report.budget_exhausted:
         report.level = "lp-split"
-    return CONSISTENT, applications
+    return Propagation(lo, hi, Status.CONSISTENT, applications)
 
 
 def warm_up_lp() -> None:
@@ -377,16 +361,7 @@ def warm_up_lp() -> None:
     )
     lo = np.array([0.0, 0.0, 0.0, 0.9, -0.2, 0.0, 0.0, 1.0, 1.5, -1.0, -0.1, 1.0])
     hi = np.array([0.0, 0.0, 0.0, 1.2, 0.2, 0.1, 0.1, 1.1, 3.5, 1.0, 0.1, 1.1])
-    tighten_in_place(factors, lo, hi, np.arange(len(lo)), WarmStarts())
-
-
-def _factors_of(arrays: Arrays, variable: int) -> np.ndarray:
-    found = []
-    e = arrays.head[variable]
-    while e >= 0:
-        found.append(arrays.entry_factor[e])
-        e = arrays.entry_next[e]
-    return np.array(found, dtype=np.int64)
+    tighten(factors, lo, hi, np.arange(len(lo)), WarmStarts())
 
 
 class _Propagator:
@@ -403,14 +378,14 @@ class _Propagator:
 
     def __call__(
         self, lo: np.ndarray, hi: np.ndarray, touched: np.ndarray, max_applications: int = 2**62
-    ) -> tuple[int, int]:
+    ) -> tuple[Status, int]:
         a = self.arrays
         status, count, _ = propagate_buffered(
             lo, hi, a.factors, a.head, a.entry_factor, a.entry_next, touched, self.rtol,
             self.max_rounds, max_applications, self.queue, self.state, self.memory,
             self.applied,
         )  # fmt: skip
-        return status, count
+        return Status(status), count
 
 
 def _polytope_rounds(
@@ -422,7 +397,7 @@ def _polytope_rounds(
     progress: Callable[[int, int], None] | None,
     deadline: float | None,
     report: StrengthenReport,
-) -> tuple[int, int, bool]:
+) -> tuple[Status, int, bool]:
     """Sweeps of the polytope-hull operator along the chain, forward then backward, until
     they stall.
 
@@ -436,7 +411,7 @@ def _polytope_rounds(
     """
     windows = _windows(arrays.factors)
     if not windows:
-        return CONSISTENT, 0, True
+        return Status.CONSISTENT, 0, True
     propagate = _Propagator(arrays, rtol, max_rounds)
     everything = np.arange(arrays.factors.shape[0], dtype=np.int64)
     applications = 0
@@ -475,15 +450,15 @@ def _polytope_rounds(
                 break
             status, count = propagate(lo, hi, window.indices, LOCAL_SPAN * len(window.indices))
             applications += count
-            if status == INCONSISTENT:
-                return INCONSISTENT, applications, True
+            if status is Status.INCONSISTENT:
+                return Status.INCONSISTENT, applications, True
             old_lo, old_hi = lo[window.targets], hi[window.targets]
-            feasible = tighten_in_place(
+            tightened = tighten(
                 window.rows, lo, hi, lower, warm[w], deadline=deadline,
                 statistics=report.lp, upper_targets=upper, reuse=reuse,
             )  # fmt: skip
-            if not feasible:
-                return INCONSISTENT, applications, True
+            if tightened.is_empty:
+                return Status.INCONSISTENT, applications, True
             with np.errstate(invalid="ignore"):
                 slack = STALE_GAIN * (old_hi - old_lo)
                 moved_lo = (lo[window.targets] - old_lo > slack) | (
@@ -499,14 +474,14 @@ def _polytope_rounds(
         cut = cut or report.lp.skipped > skipped
         status, count = propagate(lo, hi, everything)
         applications += count
-        if status == INCONSISTENT:
-            return INCONSISTENT, applications, True
+        if status is Status.INCONSISTENT:
+            return Status.INCONSISTENT, applications, True
         if cut:
-            return CONSISTENT, applications, False
+            return Status.CONSISTENT, applications, False
         new_width = _total_width(lo, hi, targets)
         if new_width > width * (1.0 - MIN_GAIN):
             break
         if expired(deadline) and round_index + 1 < MAX_LP_ROUNDS:
-            return CONSISTENT, applications, False
+            return Status.CONSISTENT, applications, False
         width = new_width
-    return CONSISTENT, applications, True
+    return Status.CONSISTENT, applications, True

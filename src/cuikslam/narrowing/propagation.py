@@ -1,4 +1,13 @@
-"""Propagation: narrow a graph's boxes to the fixpoint of its factors' narrowing operators."""
+"""Propagation: narrow a graph's boxes to the fixpoint of its factors' narrowing operators.
+
+This module also holds the narrowing protocol every level follows: a narrowing function
+takes the compiled graph (:class:`Arrays`) and the bounds ``lo``/``hi``, narrows them in
+place, and returns a :class:`Propagation` holding those same arrays, a :class:`Status`
+and the count of operator applications (:func:`narrow` here,
+:func:`.consistency.strengthen`, :func:`.relaxation.tighten`). :func:`propagate` is the
+entry point on a :class:`KinematicGraph`: it copies the bounds, then narrows the copies.
+The kernels' integer codes stay inside the kernels and this module.
+"""
 
 from __future__ import annotations
 
@@ -17,7 +26,7 @@ from cuikslam.narrowing._propagate import (
 )
 from cuikslam.options import SolveOptions
 
-__all__ = ["DEFAULT_RTOL", "Propagation", "Status", "propagate"]
+__all__ = ["DEFAULT_RTOL", "Arrays", "Propagation", "Status", "narrow", "propagate"]
 
 DEFAULT_RTOL = SolveOptions.rtol
 """A variable that shrinks by less than this fraction of its width wakes nobody."""
@@ -34,6 +43,31 @@ class Status(enum.Enum):
     """Proof that the constraints have no solution."""
     BUDGET_EXHAUSTED = BUDGET_EXHAUSTED
     """Stopped before the fixpoint; the boxes still enclose every solution."""
+
+
+@dataclass
+class Arrays:
+    """A graph as the compiled kernels see it (see :mod:`cuikslam.graph.encoding`)."""
+
+    factors: np.ndarray
+    head: np.ndarray
+    entry_factor: np.ndarray
+    entry_next: np.ndarray
+
+    @classmethod
+    def of(cls, graph: KinematicGraph) -> Arrays:
+        """The factor table and adjacency lists of ``graph``."""
+        head, entry_factor, entry_next = graph.adjacency()
+        return cls(graph.factor_table(), head, entry_factor, entry_next)
+
+    def factors_of(self, variable: int) -> np.ndarray:
+        """The factors on ``variable`` (by walking its adjacency list)."""
+        found = []
+        e = self.head[variable]
+        while e >= 0:
+            found.append(self.entry_factor[e])
+            e = self.entry_next[e]
+        return np.array(found, dtype=np.int64)
 
 
 @dataclass
@@ -81,6 +115,49 @@ class Propagation:
         return self.graph
 
 
+def narrow(
+    arrays: Arrays,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    touched: np.ndarray | None = None,
+    rtol: float = DEFAULT_RTOL,
+    max_rounds: int = DEFAULT_ROUNDS,
+    max_applications: int = 2**62,
+) -> Propagation:
+    """Narrow ``lo``/``hi`` in place to the fixpoint of the narrowing operators of ``arrays``.
+
+    Parameters
+    ----------
+    arrays : Arrays
+        The graph, compiled.
+    lo, hi : ndarray
+        Bounds of every variable (float64); narrowed in place.
+    touched : ndarray of int, optional
+        Factors to apply first (incremental propagation); all factors by default.
+    rtol : float
+        Relative shrink below which a variable wakes no other factor.
+    max_rounds : int
+        Local repetitions of a factor's sub-operators.
+    max_applications : int
+        Budget of operator applications.
+
+    Returns
+    -------
+    Propagation
+        Holding ``lo`` and ``hi`` themselves; ``Status.INCONSISTENT`` is a proof that no
+        solution lies in the box.
+    """
+    ensure_round_to_nearest()
+    if touched is None:
+        touched = np.arange(arrays.factors.shape[0], dtype=np.int64)
+    status, applications = propagate_arrays(
+        lo, hi, arrays.factors, arrays.head, arrays.entry_factor, arrays.entry_next,
+        np.asarray(touched, dtype=np.int64), float(rtol), int(max_rounds),
+        int(max_applications),
+    )  # fmt: skip
+    return Propagation(lo, hi, Status(status), int(applications))
+
+
 def propagate(
     graph: KinematicGraph,
     lo: np.ndarray | None = None,
@@ -105,26 +182,18 @@ def propagate(
         Local repetitions of a factor's sub-operators.
     max_applications : int
         Budget of operator applications.
+
+    Returns
+    -------
+    Propagation
+        The narrowed copies, which answer :meth:`Propagation.pose_box` and
+        :meth:`Propagation.landmark_box`.
     """
     ensure_round_to_nearest()
     if lo is None or hi is None:
         lo, hi = graph.domains()
     else:
         lo, hi = np.array(lo, dtype=np.float64), np.array(hi, dtype=np.float64)
-    factors = graph.factor_table()
-    if touched is None:
-        touched = np.arange(factors.shape[0], dtype=np.int64)
-    head, entry_factor, entry_next = graph.adjacency()
-    status, applications = propagate_arrays(
-        lo,
-        hi,
-        factors,
-        head,
-        entry_factor,
-        entry_next,
-        np.asarray(touched, dtype=np.int64),
-        float(rtol),
-        int(max_rounds),
-        int(max_applications),
-    )
-    return Propagation(lo, hi, Status(status), int(applications), graph)
+    result = narrow(Arrays.of(graph), lo, hi, touched, rtol, max_rounds, max_applications)
+    result.graph = graph
+    return result

@@ -44,6 +44,7 @@ from cuikslam.graph.encoding import (
 from cuikslam.interval import ops as ia
 from cuikslam.interval._periodic import _shift_bounds, periodic_meet_k
 from cuikslam.narrowing.lp_bounds import LpStatistics, WarmStarts, certified_bounds
+from cuikslam.narrowing.propagation import Propagation, Status
 
 END_TANGENTS_ABOVE = 0.3
 """Tangents at the ends of an angle's interval are kept when it is wider than this (rad)."""
@@ -54,7 +55,6 @@ __all__ = [
     "WarmStarts",
     "relax",
     "tighten",
-    "tighten_in_place",
 ]
 
 
@@ -363,6 +363,12 @@ def _turn_rows(
     return [(cols, vals, shift[single])]
 
 
+def _among(targets: np.ndarray, used: np.ndarray) -> np.ndarray:
+    """The ``targets`` found in the sorted ``used``, in their order (the LPs' order)."""
+    at = np.minimum(np.searchsorted(used, targets), max(len(used) - 1, 0))
+    return targets[(len(used) > 0) & (used[at] == targets)] if len(used) else targets[:0]
+
+
 def tighten(
     factors: np.ndarray,
     lo: np.ndarray,
@@ -373,54 +379,46 @@ def tighten(
     deadline: float | None = None,
     statistics: LpStatistics | None = None,
     upper_targets: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, bool]:
-    """Narrow the ``targets`` variables to the hull of the linear relaxation of ``factors``.
+    reuse: bool = False,
+) -> Propagation:
+    """Narrow the ``targets`` variables, in place, to the hull of the linear relaxation of
+    ``factors``.
 
     Only the variables of ``factors`` enter the LP (so a window of a long graph stays
-    small). Returns new ``(lo, hi, feasible)``; ``feasible`` is False when the relaxation
-    is proven empty (then the graph has no solution in the box). Pass the same ``warm``
-    to repeated calls on the same factors: each LP then starts from the optimal basis of
-    its previous call, which the rows of a narrower box usually keep nearly optimal.
+    small): its cost depends on the size of ``factors`` and the targets only, not on the
+    length of ``lo``. Pass the same ``warm`` to repeated calls on the same factors: each LP
+    then starts from the optimal basis of its previous call, which the rows of a narrower
+    box usually keep nearly optimal.
 
-    Each LP runs within its own limits (see :mod:`.lp_bounds`); past ``deadline`` (a
-    :func:`time.perf_counter` value) no further LP starts and the remaining targets keep
-    their bounds. ``statistics`` (an :class:`LpStatistics`) receives the LP counts.
-    With ``upper_targets``, only the lower bounds of ``targets`` and the upper bounds of
-    ``upper_targets`` are computed.
-    """
-    lo, hi = lo.copy(), hi.copy()
-    feasible = tighten_in_place(
-        factors, lo, hi, targets, warm, deadline=deadline, statistics=statistics,
-        upper_targets=upper_targets,
-    )  # fmt: skip
-    return lo, hi, feasible
+    Parameters
+    ----------
+    factors : ndarray
+        Factor rows (see :mod:`cuikslam.graph.encoding`).
+    lo, hi : ndarray
+        Bounds of every variable; narrowed in place.
+    targets : ndarray of int
+        The variables to bound.
+    warm : WarmStarts, optional
+        Bases and multipliers of the previous calls on the same factors.
+    deadline : float, optional
+        A :func:`time.perf_counter` value past which no further LP starts (the remaining
+        targets keep their bounds); each LP also runs within its own limits (see
+        :mod:`.lp_bounds`).
+    statistics : LpStatistics, optional
+        Receives the LP counts.
+    upper_targets : ndarray of int, optional
+        With it, only the lower bounds of ``targets`` and the upper bounds of
+        ``upper_targets`` are computed.
+    reuse : bool
+        No LP is solved: each bound is the safe bound of the multipliers of the same
+        target's last LP in ``warm`` (see :func:`.lp_bounds.certified_bounds`).
 
-
-def _among(targets: np.ndarray, used: np.ndarray) -> np.ndarray:
-    """The ``targets`` found in the sorted ``used``, in their order (the LPs' order)."""
-    at = np.minimum(np.searchsorted(used, targets), max(len(used) - 1, 0))
-    return targets[(len(used) > 0) & (used[at] == targets)] if len(used) else targets[:0]
-
-
-def tighten_in_place(
-    factors: np.ndarray,
-    lo: np.ndarray,
-    hi: np.ndarray,
-    targets: np.ndarray,
-    warm: WarmStarts | None = None,
-    *,
-    deadline: float | None = None,
-    statistics: LpStatistics | None = None,
-    upper_targets: np.ndarray | None = None,
-    reuse: bool = False,
-) -> bool:
-    """:func:`tighten` narrowing ``lo`` and ``hi`` in place; returns ``feasible``.
-
-    With ``reuse``, no LP is solved: each bound is the safe bound of the multipliers of
-    the same target's last LP in ``warm`` (see :func:`.lp_bounds.certified_bounds`).
-
-    Its cost depends on the size of ``factors`` and the targets only, not on the length
-    of ``lo`` (a window of a long log costs the same wherever it lies).
+    Returns
+    -------
+    Propagation
+        Holding ``lo`` and ``hi`` themselves; ``Status.INCONSISTENT`` when the relaxation
+        is proven empty (then the graph has no solution in the box), and no operator
+        applications.
     """
     ensure_round_to_nearest()
     slots = factors[:, 1:]
@@ -429,7 +427,7 @@ def tighten_in_place(
     local_factors[:, 1:] = np.where(slots >= 0, np.searchsorted(used, np.maximum(slots, 0)), -1)
     relaxation = relax(local_factors, lo[used], hi[used])
     if relaxation.matrix.shape[0] == 0:
-        return True
+        return Propagation(lo, hi, Status.CONSISTENT, 0)
     box = np.stack([relaxation.col_lo, relaxation.col_hi], axis=-1)
     csc = relaxation.matrix.tocsc()
     upper_targets = targets if upper_targets is None else upper_targets
@@ -446,4 +444,5 @@ def tighten_in_place(
         lo[chosen] = np.maximum(lo[chosen], lower)
     if upper_chosen.size:
         hi[upper_chosen] = np.minimum(hi[upper_chosen], upper)
-    return not (np.any(lo[chosen] > hi[chosen]) or np.any(lo[upper_chosen] > hi[upper_chosen]))
+    empty = np.any(lo[chosen] > hi[chosen]) or np.any(lo[upper_chosen] > hi[upper_chosen])
+    return Propagation(lo, hi, Status.INCONSISTENT if empty else Status.CONSISTENT, 0)
