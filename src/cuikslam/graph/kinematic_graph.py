@@ -12,22 +12,18 @@ Initial domains: priors where given, the measured intervals for measurements, an
 
 from __future__ import annotations
 
-import math
-from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from cuikslam.graph.encoding import (
-    N_SLOTS,
-    OBSERVATION,
-    ODOMETRY,
-    RELATIVE,
-    ROTATION,
-    link_factor,
+from cuikslam.graph.encoding import N_SLOTS, link_factor
+from cuikslam.graph.variables import (
+    ANY_ANGLE,
+    ANY_LENGTH,
+    Variables,
+    observation_row,
+    offset_key,
 )
-from cuikslam.interval._periodic import periodic_meet
-from cuikslam.interval._rounding import PI_HI
 from cuikslam.log.records import (
     Bounds,
     LandmarkPrior,
@@ -40,18 +36,14 @@ from cuikslam.log.records import (
 
 __all__ = ["ANY_ANGLE", "ANY_LENGTH", "KinematicGraph"]
 
-ANY_ANGLE: Bounds = (-PI_HI, PI_HI)
-"""The domain of an unmeasured bearing: every angle."""
-ANY_LENGTH: Bounds = (0.0, math.inf)
-"""The domain of an unmeasured range."""
-
 
 @dataclass
 class KinematicGraph:
     """Poses, landmarks and the factors between them, encoded as arrays.
 
     Build one with :meth:`from_log` or with the ``add_*`` methods. ``domains()`` gives the
-    initial boxes; :func:`cuikslam.narrowing.propagate` narrows them.
+    initial boxes; :func:`cuikslam.narrowing.propagate` narrows them. Variables are laid
+    out by :class:`~cuikslam.graph.variables.Variables`.
     """
 
     pose_ids: list[int] = field(default_factory=list)
@@ -59,56 +51,37 @@ class KinematicGraph:
     landmark_classes: list[str] = field(default_factory=list)
     _pose_var: dict[int, int] = field(default_factory=dict)
     _landmark_var: dict[str, int] = field(default_factory=dict)
-    _lo: list[float] = field(default_factory=list)
-    _hi: list[float] = field(default_factory=list)
+    _vars: Variables = field(default_factory=Variables)
     _factors: list[tuple[int, ...]] = field(default_factory=list)
     _sensor_var: dict[tuple[int, tuple[Bounds, ...]], int] = field(default_factory=dict)
     factor_lines: list[int] = field(default_factory=list)
     """Log line of each factor (0 when built by hand), for messages."""
 
     # ----------------------------------------------------------------- building
-    def _new_vars(self, bounds: Iterable[Bounds]) -> int:
-        first = len(self._lo)
-        for lo, hi in bounds:
-            self._lo.append(float(lo))
-            self._hi.append(float(hi))
-        return first
-
     def add_pose(self, pose: int) -> int:
         """Declare pose ``pose`` (no-op if known); returns the index of its x variable."""
         if pose not in self._pose_var:
-            self._pose_var[pose] = self._new_vars([(-math.inf, math.inf)] * 3)
+            self._pose_var[pose] = self._vars.pose()
             self.pose_ids.append(pose)
         return self._pose_var[pose]
 
     def add_landmark(self, landmark: str, landmark_class: str = "") -> int:
         """Declare a landmark (no-op if known); returns the index of its x variable."""
         if landmark not in self._landmark_var:
-            self._landmark_var[landmark] = self._new_vars([(-math.inf, math.inf)] * 2)
+            self._landmark_var[landmark] = self._vars.landmark()
             self.landmark_ids.append(landmark)
             self.landmark_classes.append(landmark_class)
         return self._landmark_var[landmark]
 
-    def _narrow_initial(self, var: int, bounds: Bounds) -> None:
-        self._lo[var] = max(self._lo[var], float(bounds[0]))
-        self._hi[var] = min(self._hi[var], float(bounds[1]))
-
     def add_pose_prior(self, pose: int, x: Bounds, y: Bounds, theta: Bounds) -> None:
-        """A box known to contain the pose."""
-        v = self.add_pose(pose)
-        self._narrow_initial(v, x)
-        self._narrow_initial(v + 1, y)
-        # headings meet modulo 2 pi: [0.1, 0.2] and [6.38, 6.48] are the same prior
-        lo, hi = periodic_meet(self._lo[v + 2], self._hi[v + 2], float(theta[0]), float(theta[1]))
-        self._lo[v + 2], self._hi[v + 2] = lo, hi
+        """A box known to contain the pose (headings meet modulo 2 pi)."""
+        self._vars.meet_pose(self.add_pose(pose), x, y, theta)
 
     def add_landmark_prior(
         self, landmark: str, x: Bounds, y: Bounds, landmark_class: str = ""
     ) -> None:
         """A box known to contain the landmark."""
-        v = self.add_landmark(landmark, landmark_class)
-        self._narrow_initial(v, x)
-        self._narrow_initial(v + 1, y)
+        self._vars.meet_point(self.add_landmark(landmark, landmark_class), x, y)
 
     def add_odometry(
         self, source: int, target: int, turn: Bounds, distance: Bounds, line: int = 0
@@ -116,8 +89,7 @@ class KinematicGraph:
         """Turn by ``turn``, then drive ``distance``, from ``source`` to ``target``."""
         a = self.add_pose(source)
         b = self.add_pose(target)
-        m = self._new_vars([turn, (max(0.0, distance[0]), distance[1])])
-        self._factors.append((ODOMETRY, a, a + 1, a + 2, b, b + 1, b + 2, m, m + 1))
+        self._factors.append(self._vars.odometry(a, b, turn, distance))
         self.factor_lines.append(line)
         return len(self._factors) - 1
 
@@ -137,9 +109,7 @@ class KinematicGraph:
         """
         a = self.add_pose(source)
         b = self.add_pose(target)
-        m = self._new_vars([dx, dy, dtheta])
-        self._factors.append((RELATIVE, a, a + 1, a + 2, b, b + 1, -1, m, m + 1))
-        self._factors.append((ROTATION, a, a + 1, a + 2, b, b + 1, b + 2, m + 2, -1))
+        self._factors.extend(self._vars.relative_pose(a, b, dx, dy, dtheta))
         self.factor_lines.extend((line, line))
         return len(self._factors) - 2
 
@@ -163,23 +133,15 @@ class KinematicGraph:
         """
         a = self.add_pose(pose)
         b = self.add_landmark(landmark, landmark_class)
-        bearing_b = ANY_ANGLE if bearing is None else bearing
-        range_b = ANY_LENGTH if range is None else (max(0.0, range[0]), range[1])
-        m = self._new_vars([bearing_b, range_b])
-        if offset is None:
-            self._factors.append((OBSERVATION, a, a + 1, a + 2, b, b + 1, -1, m, m + 1))
-            self.factor_lines.append(line)
-            return len(self._factors) - 1
-        key = (pose, tuple((float(lo), float(hi)) for lo, hi in offset))
-        if key not in self._sensor_var:  # one scan, one sensor pose
-            o = self._new_vars([*key[1], *[(-math.inf, math.inf)] * 3])
-            s = o + 3
-            self._sensor_var[key] = s
-            self._factors.append((RELATIVE, a, a + 1, a + 2, s, s + 1, -1, o, o + 1))
-            self._factors.append((ROTATION, a, a + 1, a + 2, s, s + 1, s + 2, o + 2, -1))
-            self.factor_lines.extend((line, line))
-        s = self._sensor_var[key]
-        self._factors.append((OBSERVATION, s, s + 1, s + 2, b, b + 1, -1, m, m + 1))
+        m = self._vars.measurement(bearing, range)
+        if offset is not None:
+            key = (pose, offset_key(offset))
+            if key not in self._sensor_var:  # one scan, one sensor pose
+                self._sensor_var[key], rows = self._vars.sensor_pose(a, key[1])
+                self._factors.extend(rows)
+                self.factor_lines.extend((line, line))
+            a = self._sensor_var[key]
+        self._factors.append(observation_row(a, b, m))
         self.factor_lines.append(line)
         return len(self._factors) - 1
 
@@ -232,7 +194,7 @@ class KinematicGraph:
     # ----------------------------------------------------------------- arrays
     @property
     def n_variables(self) -> int:
-        return len(self._lo)
+        return len(self._vars)
 
     @property
     def n_factors(self) -> int:
@@ -240,7 +202,7 @@ class KinematicGraph:
 
     def domains(self) -> tuple[np.ndarray, np.ndarray]:
         """Fresh copies of the initial lower and upper bounds of every variable."""
-        return np.array(self._lo, dtype=np.float64), np.array(self._hi, dtype=np.float64)
+        return self._vars.arrays()
 
     def factor_table(self) -> np.ndarray:
         """The factors as an int64 array of shape (n_factors, 9): kind, then 8 variable indices."""

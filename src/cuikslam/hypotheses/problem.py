@@ -28,9 +28,6 @@ from cuikslam.graph.encoding import (
     LENGTH,
     N_SLOTS,
     OBSERVATION,
-    ODOMETRY,
-    RELATIVE,
-    ROTATION,
     TA,
     TB,
     UNSEEN,
@@ -39,8 +36,7 @@ from cuikslam.graph.encoding import (
     YA,
     YB,
 )
-from cuikslam.interval._periodic import periodic_meet
-from cuikslam.interval._rounding import PI_HI
+from cuikslam.graph.variables import Variables, length_bounds, observation_row, offset_key
 from cuikslam.interval.angles import out_of_view_arc
 from cuikslam.log.records import (
     ClassPrior,
@@ -53,8 +49,6 @@ from cuikslam.log.records import (
 )
 
 __all__ = ["Decision", "Problem", "observation_rows", "unseen_rows"]
-
-_ANY = (-math.inf, math.inf)
 
 
 @dataclass(frozen=True)
@@ -128,38 +122,9 @@ class Problem:
         return done + [d.pose for d in self.decisions[:k] if d.completes_scan]
 
 
-class _Builder:
-    def __init__(self) -> None:
-        self.lo: list[float] = []
-        self.hi: list[float] = []
-
-    def new(self, *bounds: tuple[float, float]) -> int:
-        first = len(self.lo)
-        for lo, hi in bounds:
-            self.lo.append(float(lo))
-            self.hi.append(float(hi))
-        return first
-
-    def meet(self, var: int, bounds: tuple[float, float]) -> None:
-        self.lo[var] = max(self.lo[var], float(bounds[0]))
-        self.hi[var] = min(self.hi[var], float(bounds[1]))
-
-    def meet_angle(self, var: int, bounds: tuple[float, float]) -> None:
-        """Headings meet modulo 2 pi: [0.1, 0.2] and [6.38, 6.48] are the same prior."""
-        lo, hi = periodic_meet(self.lo[var], self.hi[var], float(bounds[0]), float(bounds[1]))
-        self.lo[var], self.hi[var] = lo, hi
-
-
-def _length(bounds: tuple[float, float] | None) -> tuple[float, float]:
-    """A range or distance: never below 0 (a -0.0 lower bound becomes 0.0)."""
-    if bounds is None:
-        return (0.0, math.inf)
-    return (max(0.0, float(bounds[0])), float(bounds[1]))
-
-
 def build_problem(log: Log) -> Problem:
     """Lay out the variables of ``log`` and the factor rows every hypothesis shares."""
-    b = _Builder()
+    b = Variables()
     pose_x: dict[int, int] = {}
     named: dict[str, int] = {}
     named_class: list[str] = []
@@ -173,7 +138,7 @@ def build_problem(log: Log) -> Problem:
 
     def pose(p: int) -> int:
         if p not in pose_x:
-            pose_x[p] = b.new(_ANY, _ANY, _ANY)
+            pose_x[p] = b.pose()
         return pose_x[p]
 
     def sensor(record: Observation) -> tuple[Hashable, int]:
@@ -183,13 +148,12 @@ def build_problem(log: Log) -> Problem:
         a = pose(record.pose)
         if record.offset is None:
             return record.pose, a
-        key = (record.pose, tuple((float(lo), float(hi)) for lo, hi in record.offset))
+        key = (record.pose, offset_key(record.offset))
         if key not in sensor_of:
-            o = b.new(*key[1], _ANY, _ANY, _ANY)
-            x = sensor_of[key] = o + 3
+            x, sensor_rows = b.sensor_pose(a, key[1])
+            sensor_of[key] = x
             sensor_x.setdefault(record.pose, []).append(x)
-            rows.append((RELATIVE, a, a + 1, a + 2, x, x + 1, -1, o, o + 1))
-            rows.append((ROTATION, a, a + 1, a + 2, x, x + 1, x + 2, o + 2, -1))
+            rows.extend(sensor_rows)
         return key, sensor_of[key]
 
     def landmark(name: str, cls: str, index: int) -> int:
@@ -197,42 +161,33 @@ def build_problem(log: Log) -> Problem:
             named[name] = len(named)
             named_class.append(cls)
             first_seen.append(index)
-            named_x.append(b.new(_ANY, _ANY))
+            named_x.append(b.landmark())
         return named[name]
 
     named_x: list[int] = []
     position = 0
     for index, record in enumerate(log.records):
         if isinstance(record, PosePrior):
-            x = pose(record.pose)
-            b.meet(x, record.x)
-            b.meet(x + 1, record.y)
-            b.meet_angle(x + 2, record.theta)
+            b.meet_pose(pose(record.pose), record.x, record.y, record.theta)
         elif isinstance(record, LandmarkPrior):
             n = landmark(record.landmark, record.landmark_class, index)
-            b.meet(named_x[n], record.x)
-            b.meet(named_x[n] + 1, record.y)
+            b.meet_point(named_x[n], record.x, record.y)
         elif isinstance(record, Odometry):
             a, c = pose(record.source), pose(record.target)
-            m = b.new(record.turn, _length(record.distance))
-            rows.append((ODOMETRY, a, a + 1, a + 2, c, c + 1, c + 2, m, m + 1))
+            rows.append(b.odometry(a, c, record.turn, record.distance))
         elif isinstance(record, RelativePose):
             a, c = pose(record.source), pose(record.target)
-            m = b.new(record.dx, record.dy, record.dtheta)
-            rows.append((RELATIVE, a, a + 1, a + 2, c, c + 1, -1, m, m + 1))
-            rows.append((ROTATION, a, a + 1, a + 2, c, c + 1, c + 2, m + 2, -1))
+            rows.extend(b.relative_pose(a, c, record.dx, record.dy, record.dtheta))
         elif isinstance(record, Observation):
             scan, a = sensor(record)
-            bearing = (-PI_HI, PI_HI) if record.bearing is None else record.bearing
-            m = b.new(bearing, _length(record.range))
+            m = b.measurement(record.bearing, record.range)
             if record.landmark is None:
-                slot = b.new(_ANY, _ANY)
-                rows.append((OBSERVATION, a, a + 1, a + 2, slot, slot + 1, -1, m, m + 1))
+                slot = b.landmark()
+                rows.append(observation_row(a, slot, m))
                 pending.append((index, record, position, m, slot, scan, a))
             else:
                 n = landmark(record.landmark, record.landmark_class, index)
-                lx = named_x[n]
-                rows.append((OBSERVATION, a, a + 1, a + 2, lx, lx + 1, -1, m, m + 1))
+                rows.append(observation_row(a, named_x[n], m))
                 seen_named.setdefault(scan, set()).add(n)
                 named_assignment[position] = n
             position += 1
@@ -275,12 +230,11 @@ def build_problem(log: Log) -> Problem:
         _add_sensor_variables(problem, b, log)
     problem.class_priors = log.class_priors
     _restrict_to_regions(problem, b)
-    problem.lo = np.array(b.lo, dtype=np.float64)
-    problem.hi = np.array(b.hi, dtype=np.float64)
+    problem.lo, problem.hi = b.arrays()
     return problem
 
 
-def _restrict_to_regions(problem: Problem, b: _Builder) -> None:
+def _restrict_to_regions(problem: Problem, b: Variables) -> None:
     """Every landmark of a class with a region lies in it: its named landmarks, and the slot
     of each of its unlabelled observations (whichever landmark that one sees)."""
     located = [(x, c) for x, c in zip(problem.named_x.tolist(), problem.named_class, strict=True)]
@@ -288,11 +242,10 @@ def _restrict_to_regions(problem: Problem, b: _Builder) -> None:
     for x, cls in located:
         prior = problem.class_priors.get(cls)
         if prior is not None and prior.x is not None and prior.y is not None:
-            b.meet(x, prior.x)
-            b.meet(x + 1, prior.y)
+            b.meet_point(x, prior.x, prior.y)
 
 
-def _add_sensor_variables(problem: Problem, b: _Builder, log: Log) -> None:
+def _add_sensor_variables(problem: Problem, b: Variables, log: Log) -> None:
     """Constants of the UNSEEN constraints: a visibility radius per pose, the out-of-view arc.
 
     The radius is a lower bound of the distance within which the pose saw every landmark
@@ -302,7 +255,7 @@ def _add_sensor_variables(problem: Problem, b: _Builder, log: Log) -> None:
     sensor = log.sensor
     nearest: dict[int, float] = {}
     for record in log.observations:
-        low = _length(record.range)[0]
+        low = length_bounds(record.range)[0]
         nearest[record.pose] = min(nearest.get(record.pose, math.inf), low)
     for pose in problem.pose_x:
         radius = sensor.max_range
