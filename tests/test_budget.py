@@ -19,7 +19,7 @@ from cuikslam.budget import deadline_after, expired, portion, remaining
 from cuikslam.cli.main import build_parser
 from cuikslam.graph import KinematicGraph
 from cuikslam.hypotheses.witness import certify
-from cuikslam.narrowing import consistency, lp_bounds, propagate
+from cuikslam.narrowing import consistency, lp_bounds, propagate, sweeps
 from cuikslam.narrowing.consistency import BUDGET_SUFFIX, StrengthenReport, strengthen
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, Arrays, Status
 from cuikslam.results.solution import NOT_REFUTED, PROVEN, check_truth
@@ -109,6 +109,7 @@ def test_cut_at_every_point_the_truth_stays_inside(level: str, monkeypatch) -> N
     for n in itertools.chain(range(6), range(10, 200, 37)):
         clock = _Clock(n)
         monkeypatch.setattr(consistency, "expired", clock)
+        monkeypatch.setattr(sweeps, "expired", clock)
         monkeypatch.setattr(lp_bounds, "expired", clock)
         lo, hi = lo0.copy(), hi0.copy()
         report = StrengthenReport()

@@ -15,14 +15,10 @@ from _exact import MP, TWO_PI, mpf
 from cuikslam.graph import KinematicGraph
 from cuikslam.graph.encoding import OBSERVATION, ODOMETRY
 from cuikslam.narrowing import Status, propagate
-from cuikslam.narrowing.consistency import (
-    LEVELS,
-    WINDOW_OVERLAP,
-    WINDOW_POSES,
-    _windows,
-    resolve_level,
-)
-from cuikslam.narrowing.relaxation import relax, tighten
+from cuikslam.narrowing.consistency import LEVELS, resolve_level
+from cuikslam.narrowing.polytope import tighten
+from cuikslam.narrowing.relaxation import relax
+from cuikslam.narrowing.sweeps import WINDOW_OVERLAP, WINDOW_POSES, chain_windows
 from cuikslam.results.solution import check_truth
 from cuikslam.simulate import simulate_paper, simulate_random_world
 from cuikslam.solver import solve
@@ -250,7 +246,7 @@ def test_windows_hold_exactly_the_factors_among_their_poses(seed: int) -> None:
     of the log lies in some window."""
     log, _ = simulate_random_world(seed=seed, n_poses=37, n_landmarks=4, size=(20.0, 15.0))
     factors = KinematicGraph.from_log(log).factor_table()
-    windows = _windows(factors)
+    windows = chain_windows(factors)
     pose_of = {}
     for f in factors[factors[:, 0] == ODOMETRY]:
         pose_of[f[1]] = pose_of[f[4]] = None

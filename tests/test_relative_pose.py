@@ -24,8 +24,9 @@ from cuikslam.log import (
     read_log_file,
     write_log_file,
 )
+from cuikslam.narrowing.polytope import tighten
 from cuikslam.narrowing.propagation import Status, propagate
-from cuikslam.narrowing.relaxation import relax, tighten
+from cuikslam.narrowing.relaxation import relax
 from test_consistency import _assert_rows_hold, _inside
 from test_factor_soundness import worlds as factor_worlds
 from worlds import down, up

@@ -22,13 +22,9 @@ from scipy import sparse
 
 from cuikslam.graph import KinematicGraph
 from cuikslam.narrowing import lp_bounds, propagate
-from cuikslam.narrowing.lp_bounds import (
-    WarmStarts,
-    _model,
-    certified_bounds,
-    safe_lower_bound,
-)
+from cuikslam.narrowing.lp_bounds import WarmStarts, _model, certified_bounds
 from cuikslam.narrowing.relaxation import relax
+from cuikslam.narrowing.safe_bound import safe_lower_bound
 from cuikslam.simulate import simulate_random_world
 
 garbage = st.one_of(

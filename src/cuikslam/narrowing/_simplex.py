@@ -10,7 +10,7 @@ equality), a few microseconds per iteration, and computes each safe bound in the
 pass.
 
 Nothing here needs to be exact: the simplex only proposes multipliers, and every bound is
-re-derived from them in interval arithmetic (:func:`.lp_bounds._safe_bound`). A kernel that
+re-derived from them in interval arithmetic (:func:`.safe_bound.safe_bound`). A kernel that
 stalls or meets anything it does not handle (an unbounded ray, a tiny pivot) stops and
 says where, and the caller goes on with HiGHS.
 """

@@ -4,7 +4,7 @@ This module also holds the narrowing protocol every level follows: a narrowing f
 takes the compiled graph (:class:`Arrays`) and the bounds ``lo``/``hi``, narrows them in
 place, and returns a :class:`Propagation` holding those same arrays, a :class:`Status`
 and the count of operator applications (:func:`narrow` here,
-:func:`.consistency.strengthen`, :func:`.relaxation.tighten`). :func:`propagate` is the
+:func:`.consistency.strengthen`, :func:`.polytope.tighten`). :func:`propagate` is the
 entry point on a :class:`KinematicGraph`: it copies the bounds, then narrows the copies.
 The kernels' integer codes stay inside the kernels and this module.
 """
