@@ -9,18 +9,34 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
 __all__ = [
+    "EXIT_INPUT",
+    "EXIT_OK",
+    "EXIT_RESULT",
     "FIGURE_SUFFIXES",
+    "STARTED",
     "CommandError",
     "check_figure_path",
     "check_output_path",
     "progress_bar",
     "write_output",
 ]
+
+
+STARTED = time.perf_counter()
+"""When the command started (near enough: :mod:`cuikslam.cli.main` imports this module
+before anything slow)."""
+
+EXIT_OK = 0
+EXIT_RESULT = 1
+"""The result itself reports a problem (an inconsistent log, a box that misses the truth)."""
+EXIT_INPUT = 2
+"""Bad input or usage."""
 
 
 class CommandError(Exception):

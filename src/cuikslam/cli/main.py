@@ -11,10 +11,7 @@ import argparse
 import math
 import os
 import sys
-import time
 from collections.abc import Callable, Sequence
-from functools import partial
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 from cuikslam import __version__
@@ -24,227 +21,22 @@ from cuikslam.budget import (
     MIN_COMMAND_BUDGET,
     SECONDS_PER_POSE,
 )
-from cuikslam.cli._common import (
-    CommandError,
-    check_figure_path,
-    check_output_path,
-    write_output,
+from cuikslam.cli._common import EXIT_INPUT, CommandError
+from cuikslam.cli.commands import (
+    cmd_evaluate,
+    cmd_import,
+    cmd_paper,
+    cmd_plot,
+    cmd_simulate,
+    cmd_solve,
 )
 from cuikslam.errors import InputFileError
 from cuikslam.options import Level, SolveOptions
 
 if TYPE_CHECKING:
-    from rich.console import Console
+    pass
 
 __all__ = ["main"]
-
-STARTED = time.perf_counter()
-"""When the command started (near enough: this module is the first one it imports)."""
-
-EXIT_OK = 0
-EXIT_RESULT = 1
-EXIT_INPUT = 2
-
-
-def _console() -> Console:
-    """stdout console; wide when piped so tables do not wrap."""
-    from rich.console import Console
-
-    if sys.stdout.isatty():
-        return Console()
-    return Console(width=220, color_system=None, soft_wrap=False)
-
-
-def _truth_path_for(log_path: Path) -> Path:
-    """Where ``simulate`` writes the ground truth of ``log_path``: ``NAME.truth.json`` beside it."""
-    name = log_path.name
-    stem = name[: -len(".jsonl")] if name.endswith(".jsonl") else log_path.stem
-    return log_path.with_name(f"{stem}.truth.json")
-
-
-# --------------------------------------------------------------------------- commands
-def _cmd_paper(args: argparse.Namespace) -> int:
-    # Output paths are checked before the (slow) solver import; run_paper checks them too.
-    if args.json:
-        check_output_path(args.json)
-    if args.figure:
-        check_figure_path(args.figure)
-    from cuikslam.cli.paper import run_paper
-
-    budget = args.time_budget
-    if budget == "auto":
-        budget = DEFAULT_TIME_BUDGET
-    return run_paper(
-        seed=args.seed,
-        figure=args.figure,
-        json_path=args.json,
-        console=_console(),
-        time_budget=budget,
-    )
-
-
-def _cmd_solve(args: argparse.Namespace) -> int:
-    from cuikslam.cli.solve import run_solve
-
-    if len(args.log) > 1 or args.workers is not None or args.scheduler is not None:
-        from cuikslam.cli.cluster import run_solve_cluster
-
-        run = partial(
-            run_solve_cluster, log_paths=args.log, workers=args.workers, scheduler=args.scheduler
-        )
-    else:
-        run = partial(run_solve, log_path=args.log[0])
-    return run(
-        json_path=args.json,
-        csv_path=args.csv,
-        truth_path=args.truth,
-        quiet=args.quiet,
-        console=_console(),
-        table=args.table,
-        options=SolveOptions(
-            consistency=args.consistency,
-            max_hypotheses=args.max_hypotheses,
-            strengthen_limit=args.strengthen_limit,
-            strengthen_during=args.strengthen_during,
-        ),
-        time_budget=args.time_budget,
-        started=STARTED,
-        survivors_path=args.survivors,
-    )
-
-
-def _log_and_truth_outputs(output: str) -> tuple[Path, Path]:
-    """The log path and its truth file beside it, both checked writable before any work."""
-    out = Path(output)
-    truth_out = _truth_path_for(out)
-    check_output_path(out)
-    check_output_path(truth_out)
-    return out, truth_out
-
-
-def _cmd_simulate(args: argparse.Namespace) -> int:
-    from cuikslam.simulate import simulate_paper, simulate_random_world
-
-    out, truth_out = _log_and_truth_outputs(args.output)
-    classes = tuple(c.strip() for c in args.classes.split(","))
-    if not all(classes):
-        raise CommandError(f"--classes {args.classes!r}: class names must be non-empty")
-    for option, value in (("--max-range", args.max_range), ("--fov", args.fov)):
-        if not math.isfinite(value):
-            raise CommandError(f"{option} {value}: must be a finite number")
-    pairs = {
-        name: _number_pair(option, getattr(args, name))
-        for name, option in (
-            ("size", "--size"),
-            ("step", "--step"),
-            ("odometry_bounds", "--odometry-bounds"),
-            ("observation_bounds", "--observation-bounds"),
-        )
-    }
-    try:
-        if args.world == "paper":
-            log, truth = simulate_paper(seed=args.seed, unknown=args.unknown)
-        else:
-            log, truth = simulate_random_world(
-                seed=args.seed,
-                n_poses=args.poses,
-                n_landmarks=args.landmarks,
-                classes=classes,
-                max_range=args.max_range,
-                fov=args.fov,
-                size=pairs["size"],
-                step_length=pairs["step"],
-                odometry_bounds=pairs["odometry_bounds"],
-                observation_bounds=pairs["observation_bounds"],
-                unknown=args.unknown,
-            )
-    except ValueError as err:  # an impossible world (WorldSpec checks its parameters)
-        problem = str(err).removeprefix("WorldSpec: ")
-        raise CommandError(f"simulate {args.world}: {problem}") from None
-    _write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)
-    return EXIT_OK
-
-
-def _number_pair(option: str, text: str) -> tuple[float, float]:
-    """Two finite numbers written ``A,B`` (an option's value)."""
-    parts = text.split(",")
-    try:
-        a, b = (float(p) for p in parts)
-    except ValueError:
-        raise CommandError(f"{option} {text!r}: expected two numbers A,B") from None
-    if not (math.isfinite(a) and math.isfinite(b)):
-        raise CommandError(f"{option} {text!r}: must be finite numbers")
-    return a, b
-
-
-def _write_log_and_truth(log, truth, out: Path, truth_out: Path, *, quiet: bool) -> None:
-    """Write a log and its ground truth beside it (both atomically), and say so."""
-    from cuikslam.log.writer import write_log_file
-    from cuikslam.simulate import write_truth_file
-
-    write_output(out, lambda: write_log_file(log, out))
-    write_output(truth_out, lambda: write_truth_file(truth, truth_out))
-    if not quiet:
-        print(
-            f"wrote {out} ({len(log.records)} records: "
-            f"{len(log.odometry) + len(log.relative_poses)} moves, "
-            f"{len(log.observations)} observations) and its ground truth {truth_out}",
-            file=sys.stderr,
-        )
-
-
-def _cmd_import(args: argparse.Namespace) -> int:
-    from cuikslam.datasets import read_lost_in_the_woods
-
-    out, truth_out = _log_and_truth_outputs(args.output)
-    log, truth = read_lost_in_the_woods(
-        args.file,
-        start=args.start,
-        steps=args.steps,
-        keyframe=args.keyframe,
-        unknown=not args.known,
-        speed_bound=args.speed_bound,
-        turn_rate_bound=args.turn_rate_bound,
-        range_bound=args.range_bound,
-        bearing_bound=args.bearing_bound,
-        every_observation=not args.keyframe_observations,
-    )
-    _write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)
-    return EXIT_OK
-
-
-def _cmd_plot(args: argparse.Namespace) -> int:
-    from cuikslam.results.io import read_result_file
-    from cuikslam.simulate.truth import read_truth_file
-
-    # Inputs and the output folder first: a bad file fails before matplotlib is imported.
-    check_figure_path(args.output)
-    solution = read_result_file(args.result)
-    truth = read_truth_file(args.truth) if args.truth else None
-    if not solution.hypotheses:
-        raise CommandError(f"{args.result}: no hypothesis to plot (the log was refuted)")
-
-    from cuikslam.results.figures import plot_solution, save_figure
-
-    figure = plot_solution(solution, truth, max_hypotheses=args.max_panels)
-    write_output(args.output, lambda: save_figure(figure, args.output))
-    if not args.quiet:
-        print(f"wrote {args.output}", file=sys.stderr)
-    return EXIT_OK
-
-
-def _cmd_evaluate(args: argparse.Namespace) -> int:
-    from cuikslam.cli.evaluate import run_evaluate
-
-    return run_evaluate(
-        result_path=args.result,
-        truth_path=args.truth,
-        log_path=args.log,
-        json_path=args.json,
-        figure_path=args.figure,
-        quiet=args.quiet,
-        console=_console(),
-    )
 
 
 # --------------------------------------------------------------------------- parser
@@ -376,7 +168,7 @@ def build_parser() -> argparse.ArgumentParser:
         "limit); survivors the witness search has not proven by then stay undecided "
         "(a larger budget decides more of them)",
     )
-    p.set_defaults(func=_cmd_paper)
+    p.set_defaults(func=cmd_paper)
 
     p = sub.add_parser("solve", help="solve a JSON Lines log", description="Solve a log file.")
     p.add_argument(
@@ -409,7 +201,7 @@ def build_parser() -> argparse.ArgumentParser:
         "up to 60 poses, an overview beyond",
     )
     _add_solver_options(p)
-    p.set_defaults(func=_cmd_solve)
+    p.set_defaults(func=cmd_solve)
 
     p = sub.add_parser(
         "simulate",
@@ -450,7 +242,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="random world: range [m],bearing [rad] error bounds (default 0.05,0.02)",
     )
     p.add_argument("-q", "--quiet", action="store_true")
-    p.set_defaults(func=_cmd_simulate)
+    p.set_defaults(func=cmd_simulate)
 
     p_import = sub.add_parser(
         "import",
@@ -507,7 +299,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="keep only the observations made at a keyframe sample",
     )
     p.add_argument("-q", "--quiet", action="store_true")
-    p.set_defaults(func=_cmd_import)
+    p.set_defaults(func=cmd_import)
 
     p = sub.add_parser("plot", help="draw a result JSON", description="Draw the boxes of a result.")
     p.add_argument("result", help="result JSON written by `cuikslam solve --json`")
@@ -515,7 +307,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--truth", help="ground-truth JSON to draw as points")
     p.add_argument("--max-panels", type=int, default=12, help="hypotheses drawn at most")
     p.add_argument("-q", "--quiet", action="store_true")
-    p.set_defaults(func=_cmd_plot)
+    p.set_defaults(func=cmd_plot)
 
     p = sub.add_parser(
         "evaluate",
@@ -536,7 +328,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", help="write the evaluation as JSON for scripts")
     p.add_argument("--figure", help="draw boxes, truth and widths over time (.png, .pdf, .svg)")
     p.add_argument("-q", "--quiet", action="store_true", help="no tables")
-    p.set_defaults(func=_cmd_evaluate)
+    p.set_defaults(func=cmd_evaluate)
 
     from cuikslam.cli.calibrate import add_calibrate_parser
 

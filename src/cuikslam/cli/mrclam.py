@@ -120,10 +120,10 @@ def bounds_from_args(args: argparse.Namespace):
 
 
 def _cmd_import_mrclam(args: argparse.Namespace) -> int:
-    from cuikslam.cli.main import _log_and_truth_outputs, _write_log_and_truth
+    from cuikslam.cli.commands import log_and_truth_outputs, write_log_and_truth
     from cuikslam.datasets.mrclam import read_mrclam
 
-    out, truth_out = _log_and_truth_outputs(args.output)
+    out, truth_out = log_and_truth_outputs(args.output)
     bounds = bounds_from_args(args)
     try:
         log, truth, report = read_mrclam(
@@ -141,7 +141,7 @@ def _cmd_import_mrclam(args: argparse.Namespace) -> int:
         if type(err) is not ValueError:  # an InputFileError names its file: main prints it
             raise
         raise CommandError(f"import mrclam: {err}") from None
-    _write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)
+    write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)
     if not args.quiet:
         print(report.describe(), file=sys.stderr)
     return 0
