@@ -390,9 +390,20 @@ def _dense_unknown_world(n_poses: int = 12):
     )  # fmt: skip
 
 
-def test_sensor_jacobian_matches_finite_differences() -> None:
-    """Only violated pairs get Jacobian rows; they must still be the derivative."""
+@pytest.mark.parametrize("nearest_margin", [None, 1.5])
+def test_sensor_jacobian_matches_finite_differences(nearest_margin: float | None) -> None:
+    """Only violated pairs get Jacobian rows; they must still be the derivative (with the
+    nearest-landmark clause too, whose rows also move the nearest landmark)."""
     log, truth = _dense_unknown_world()
+    if nearest_margin is not None:
+        log = replace(
+            log,
+            records=[
+                replace(r, nearest_margin=nearest_margin) if isinstance(r, SensorModel) else r
+                for r in log.records
+            ],
+        )
+        assert log.sensor is not None and log.sensor.nearest_margin == nearest_margin
     model = HypothesisModel(log, truth.assignment)
     rng = np.random.default_rng(7)
     checked = 0
@@ -466,3 +477,37 @@ def test_certify_shares_a_total_work_limit() -> None:
     assert [h.status for h in solution.hypotheses] == [PROVEN, NOT_REFUTED]
     assert solution.statistics["undecided_hypotheses"] == 1
     assert any("in all" in m for m in solution.messages)
+
+
+def test_true_hypothesis_of_a_dense_100_pose_world_is_proven() -> None:
+    """A dense 100-pose world (a 30 m room, 2 m steps, a 12 m half-circle sensor, no ids):
+    the witness search proves the true hypothesis within a work limit, and its witness
+    world is verified again independently."""
+    from cuikslam.hypotheses import solve_unknown
+    from cuikslam.hypotheses.witness.find import find_point
+    from cuikslam.results.association import rank_of
+
+    log, truth = simulate_random_world(
+        seed=3, n_poses=100, n_landmarks=16, classes=("door", "corridor"), unknown=True,
+        size=(30.0, 30.0), step_length=(2.0, 2.0), max_range=12.0, fov=math.pi,
+        odometry_bounds=(math.radians(1.0), 0.05), observation_bounds=(0.05, math.radians(1.0)),
+    )  # fmt: skip
+    solution = solve_unknown(log, consistency="hull", strengthen_during=0)
+    rank = rank_of(solution.hypotheses, truth.assignment)
+    assert rank is not None
+    solution.hypotheses = [solution.hypotheses[rank - 1]]
+    stats = certify(log, solution, max_evaluations=2_000)
+    assert solution.hypotheses[0].status == PROVEN
+    assert not stats.out_of_work and stats.evaluations <= 2_000
+    h = solution.hypotheses[0]
+    model = HypothesisModel(log, h.assignment)
+    point, box = find_point(
+        model,
+        {pid: h.poses[k] for k, pid in enumerate(h.pose_ids)},
+        {lid: h.landmarks[k] for k, lid in enumerate(h.landmark_ids)},
+        seed=0,
+        restarts=0,
+        max_evaluations=2_000,
+    )
+    assert point is not None and box is not None
+    assert verify_witness(log, h.assignment, point)

@@ -15,7 +15,7 @@ thread (:func:`cuikslam.budget.blas_single_thread`): its matrices are tiny.
 from __future__ import annotations
 
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -37,14 +37,17 @@ from cuikslam.results.solution import NOT_REFUTED, PROVEN, Solution
 _HOPELESS = 0.5
 """A hinge residual (in half-widths) beyond which aiming closer to the bounds is not tried."""
 MAX_EVALUATIONS = 20_000
+"""Residual evaluations (each with its Jacobian) one hypothesis' search may use at most."""
 MAX_TOTAL_EVALUATIONS = 40_000
 """Residual evaluations one :func:`certify` may use for all its hypotheses together."""
-"""Residual evaluations (each with its Jacobian) one hypothesis' search may use at most."""
 CENTRE_EVALUATIONS = 50
 """Evaluations of the least-squares estimate that starts each local search."""
 MARGIN_EVALUATIONS = 200
-TR_SOLVER = "exact"
 """Evaluations of each hinge (aimed margins) least-squares run."""
+TR_SOLVER = "exact"
+"""Trust-region solver of the least squares on the model's (dense) Jacobians."""
+VERIFY_EVERY = 10
+"""The least squares' points are verified every this many evaluations (and at the end)."""
 
 
 @dataclass
@@ -69,6 +72,14 @@ class WitnessStatistics:
 
 class _OutOfWork(Exception):
     pass
+
+
+class _Verified(Exception):
+    """A point of a least-squares run verified: the run stops there."""
+
+    def __init__(self, p: np.ndarray, box: np.ndarray) -> None:
+        super().__init__()
+        self.p, self.box = p, box
 
 
 @dataclass
@@ -108,16 +119,66 @@ def _polish_equalities(model: HypothesisModel, p: np.ndarray, iterations: int = 
     return p
 
 
+def _least_squares(
+    residuals: Any,
+    z0: np.ndarray,
+    meter: _Meter,
+    max_nfev: int,
+    columns: np.ndarray,
+    bounds: tuple[np.ndarray, np.ndarray],
+    probe: Callable[[np.ndarray], None] | None = None,
+) -> np.ndarray:
+    """``scipy``'s least squares on ``residuals(z, jacobian=True)`` (the Jacobian's columns
+    ``columns``) within ``bounds``, each evaluation counted by ``meter``; ``probe`` sees
+    every point evaluated (and may stop the search by raising)."""
+    memo: dict[bytes, tuple[np.ndarray, Any]] = {}
+
+    def both(z: np.ndarray) -> tuple[np.ndarray, Any]:
+        key = z.tobytes()
+        if key not in memo:
+            meter.tick()
+            memo.clear()
+            if probe is not None:
+                probe(z)
+            r, J = residuals(z, jacobian=True)
+            memo[key] = (finite(r), finite(J[:, columns], nan=0.0))
+        return memo[key]
+
+    from scipy.optimize import least_squares  # loaded when a witness is sought
+
+    result = least_squares(
+        lambda z: both(z)[0], z0, jac=lambda z: both(z)[1],
+        bounds=bounds,
+        method="trf", xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=max_nfev,
+        tr_solver=TR_SOLVER,
+    )  # fmt: skip
+    return result.x
+
+
+def _param_bounds(model: HypothesisModel) -> tuple[np.ndarray, np.ndarray]:
+    """The parameters' intervals, each narrowed by its aimed margin."""
+    margin = aim_margin(model.param_lo, model.param_hi)
+    lb = np.where(np.isfinite(model.param_lo), model.param_lo + margin, -np.inf)
+    ub = np.where(np.isfinite(model.param_hi), model.param_hi - margin, np.inf)
+    return lb, ub
+
+
+def _shortfall(model: HypothesisModel, p: np.ndarray) -> float:
+    res = model.margin_residuals(p)[0]
+    return float(np.max(np.abs(res))) if len(res) else 0.0
+
+
 def _solve_margins(
     model: HypothesisModel, x0: np.ndarray, meter: _Meter, centre: bool = True
 ) -> tuple[np.ndarray, float, np.ndarray | None]:
     """Least squares from ``x0``: the centre estimate (when ``centre``), then the hinge
     residuals of the aimed margins; returns (params, largest hinge residual, verified box
-    or None)."""
+    or None). Every ``VERIFY_EVERY``-th point evaluated is verified too (at 100 poses the
+    hinge runs often pass through verifiable points long before they meet every aimed
+    margin): the first that verifies ends the search."""
     free = model.free
-    margin = aim_margin(model.param_lo, model.param_hi)
-    lb = np.where(np.isfinite(model.param_lo), model.param_lo + margin, -np.inf)[free]
-    ub = np.where(np.isfinite(model.param_hi), model.param_hi - margin, np.inf)[free]
+    lb, ub = _param_bounds(model)
+    lb, ub = lb[free], ub[free]
     fixed = x0.copy()
 
     def full(z: np.ndarray) -> np.ndarray:
@@ -125,30 +186,21 @@ def _solve_margins(
         q[free] = z
         return q
 
-    def least_squares_on(residuals: Any, z0: np.ndarray, max_nfev: int) -> np.ndarray:
-        memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
-
-        def both(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            key = z.tobytes()
-            if key not in memo:
-                meter.tick()
-                memo.clear()
-                r, J = residuals(full(z), jacobian=True)
-                memo[key] = (finite(r), finite(J[:, free], nan=0.0))
-            return memo[key]
-
-        from scipy.optimize import least_squares  # loaded when a witness is sought
-
-        result = least_squares(
-            lambda z: both(z)[0], z0, jac=lambda z: both(z)[1], bounds=(lb, ub),
-            method="trf", xtol=1e-14, ftol=1e-14, gtol=1e-14, max_nfev=max_nfev,
-            tr_solver=TR_SOLVER,
-        )  # fmt: skip
-        return result.x
+    def on_free(residuals: Any) -> Any:
+        return lambda z, jacobian: residuals(full(z), jacobian)
 
     def shortfall(p: np.ndarray) -> float:
-        res = model.margin_residuals(p)[0]
-        return float(np.max(np.abs(res))) if len(res) else 0.0
+        return _shortfall(model, p)
+
+    seen = [0]
+
+    def probe(z: np.ndarray) -> None:
+        seen[0] += 1
+        if seen[0] % VERIFY_EVERY == 0:
+            q = _polish_equalities(model, full(z))
+            box = verified_box(model, q)
+            if box is not None:
+                raise _Verified(q, box)
 
     z = np.clip(x0[free], lb, ub)
     p = full(z)
@@ -157,22 +209,28 @@ def _solve_margins(
     # the least-squares estimate first (smooth, so it escapes the hinges' flat spots), then
     # the margins from there; when the aimed margins do not fit together (a thin solution
     # set), aim closer to the bounds
-    if centre:
-        z = least_squares_on(model.centre_residuals, z, CENTRE_EVALUATIONS)
-    candidates = [_polish_equalities(model, full(z))]
-    for scale in (1.0, 0.1, 0.01):
+    try:
+        if centre:
+            z = _least_squares(
+                on_free(model.centre_residuals), z, meter, CENTRE_EVALUATIONS, free, (lb, ub),
+                probe,
+            )  # fmt: skip
+        candidates = [_polish_equalities(model, full(z))]
+        for scale in (1.0, 0.1, 0.01):
 
-        def hinge(q: np.ndarray, jacobian: bool, s: float = scale) -> Any:
-            return model.margin_residuals(q, jacobian, s)
+            def hinge(q: np.ndarray, jacobian: bool, s: float = scale) -> Any:
+                return model.margin_residuals(q, jacobian, s)
 
-        z = least_squares_on(hinge, z, MARGIN_EVALUATIONS)
-        p = _polish_equalities(model, full(z))
-        box = verified_box(model, p)
-        if box is not None:
-            return p, shortfall(p), box
-        candidates.append(p)
-        if shortfall(p) > _HOPELESS:
-            break  # far outside some interval: smaller margins will not help
+            z = _least_squares(on_free(hinge), z, meter, MARGIN_EVALUATIONS, free, (lb, ub), probe)
+            p = _polish_equalities(model, full(z))
+            box = verified_box(model, p)
+            if box is not None:
+                return p, shortfall(p), box
+            candidates.append(p)
+            if shortfall(p) > _HOPELESS:
+                break  # far outside some interval: smaller margins will not help
+    except _Verified as found:
+        return found.p, shortfall(found.p), found.box
     box = verified_box(model, candidates[0])
     best = candidates[0] if box is not None else min(candidates, key=shortfall)
     return best, shortfall(best), box

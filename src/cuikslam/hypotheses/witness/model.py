@@ -39,13 +39,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from cuikslam.hypotheses.witness._numeric import (
-    BIG,
     cos_sin,
     finite,
     half_width,
     midpoint,
     wrap_near,
 )
+from cuikslam.hypotheses.witness._sensor import SENSOR_MARGIN as SENSOR_MARGIN
+from cuikslam.hypotheses.witness._sensor import distance as _distance
+from cuikslam.hypotheses.witness._sensor import sensor_terms
 from cuikslam.hypotheses.witness._starts import LandmarkBoxes as LandmarkBoxes
 from cuikslam.hypotheses.witness._starts import PoseBoxes as PoseBoxes
 from cuikslam.hypotheses.witness._starts import Starts
@@ -62,8 +64,6 @@ AIM_FRACTION = 0.1
 """The optimiser aims this fraction of each interval's half-width inside it."""
 MIN_MARGIN = 1e-9
 """...but at least this much (unless the interval is narrower)."""
-SENSOR_MARGIN = 1e-6
-"""Aimed clearance (m, rad) from the sensor's visibility thresholds."""
 
 
 def aim_margin(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -72,18 +72,6 @@ def aim_margin(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     with np.errstate(invalid="ignore"):
         margin = np.minimum(np.maximum(AIM_FRACTION * half, MIN_MARGIN), 0.5 * half)
     return np.where(np.isfinite(half), np.maximum(margin, 0.0), MIN_MARGIN)
-
-
-def _distance(dx: np.ndarray, dy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(r, r_safe, r2_safe)``: ``r = hypot(dx, dy)`` (no under- or overflow), then ``r``
-    and its square made positive and finite (for the Jacobians' ``dx / r`` and
-    ``dy / r**2``; where ``r`` is 0 the Jacobian is meaningless anyway)."""
-    r = np.hypot(dx, dy)
-    r_safe = np.where(r > 0, r, 1e-300)
-    with np.errstate(over="ignore", under="ignore"):
-        r2 = r * r
-    r2 = np.where((r2 > 0) & np.isfinite(r2), r2, np.where(r > 1.0, BIG, 1e-300))
-    return r, r_safe, r2
 
 
 def _pair(bounds: tuple[float, float] | None) -> tuple[float, float]:
@@ -519,7 +507,6 @@ class HypothesisModel(Starts):
             near = ~(gap > self.sensor.max_range + slack)  # NaN (no box) counts as near
         self._sensor_rows = np.flatnonzero(near | self.observed)
 
-    @np.errstate(all="ignore")  # overflow is clipped (see _numeric.finite)
     def sensor_residuals(
         self, p: np.ndarray, jacobian: bool = False
     ) -> tuple[np.ndarray, np.ndarray | None]:
@@ -528,81 +515,26 @@ class HypothesisModel(Starts):
         n, m = self.n_poses, self.n_landmarks
         if self.sensor is None or n == 0 or m == 0:
             return np.zeros(0), (np.zeros((0, self.n_params)) if jacobian else None)
-        sensor = self.sensor
         P, JP = self.poses(p, jacobian)
-        L = self.landmarks(p)
-        dx = L[None, :, 0] - P[:, None, 0]
-        dy = L[None, :, 1] - P[:, None, 1]
-        d, d_safe, r2 = _distance(dx, dy)
-        beta = np.remainder(np.arctan2(dy, dx) - P[:, None, 2] + np.pi, 2 * np.pi) - np.pi
-        delta = SENSOR_MARGIN
-        inf = np.full((n, m), np.inf)
-        all_round = sensor.fov >= 2 * math.pi
-        half = sensor.fov / 2.0
-        # violations (> 0: violated) of "in view" and "out of view" clauses, with their kinds
-        in_range = d - (sensor.max_range - delta)
-        out_range = (sensor.max_range + delta) - d if math.isfinite(sensor.max_range) else inf
-        in_fov = -inf if all_round else np.abs(beta) - (half - delta)
-        out_fov = inf if all_round else (half + delta) - np.abs(beta)
-        visible = (d <= sensor.max_range) & (all_round | (np.abs(beta) <= half))
-        if sensor.nearest_margin is not None:
-            dv = np.where(visible, d, np.inf)
-            nearest_j = np.argmin(dv, axis=1)
-            nearest = dv[np.arange(n), nearest_j]
-            limit = nearest[:, None] + sensor.nearest_margin
-            in_near = np.where(np.isfinite(limit), d - (limit - delta), -np.inf)
-            out_near = np.where(np.isfinite(limit), (limit + delta) - d, np.inf)
-        else:
-            nearest_j = np.zeros(n, dtype=np.int64)
-            in_near = -inf
-            out_near = inf
-        obs = self.observed
-        pos = lambda a: np.maximum(a, 0.0)  # noqa: E731
-        seen_res = pos(in_range) + pos(in_fov) + pos(in_near)
-        unseen_stack = np.stack([out_range, out_fov, out_near])
-        unseen_kind = np.argmin(unseen_stack, axis=0)
-        unseen_res = pos(np.min(unseen_stack, axis=0))
-        res = np.where(obs, seen_res, unseen_res)
-        res = np.where(np.isfinite(res), res, 0.0)
-        if not jacobian:
-            return res.ravel()[self._sensor_rows], None
-        assert JP is not None
-        kept = self._sensor_rows
-        # derivatives only for the violated pairs (the others' rows are zero)
-        J = np.zeros((kept.size, self.n_params))
-        where = np.flatnonzero(res.ravel()[kept] > 0)
-        act = kept[where]
-        if act.size == 0:
-            return res.ravel()[kept], J
-        i, j = np.divmod(act, m)
-        rows = np.arange(act.size)
-
-        def d_jacobian(jj: np.ndarray) -> np.ndarray:
-            """Rows of the derivative of d(pose i, landmark jj)."""
-            u, v, s_ = dx[i, jj], dy[i, jj], d_safe[i, jj]
-            out = -(u / s_)[:, None] * JP[i, 0] - (v / s_)[:, None] * JP[i, 1]
-            cx, cy = self._landmark_columns(jj)
-            out[rows, cx] += u / s_
-            out[rows, cy] += v / s_
-            return out
-
-        Jd = d_jacobian(j)
-        u, v, q = dx[i, j], dy[i, j], r2[i, j]
-        Jb = (v / q)[:, None] * JP[i, 0] - (u / q)[:, None] * JP[i, 1] - JP[i, 2]
-        cx, cy = self._landmark_columns(j)
-        Jb[rows, cx] -= v / q
-        Jb[rows, cy] += u / q
-        Jab = np.sign(beta[i, j])[:, None] * Jb
-        Jnear = Jd - d_jacobian(nearest_j[i])
-        Jseen = (
-            (in_range[i, j] > 0)[:, None] * Jd
-            + (in_fov[i, j] > 0)[:, None] * Jab
-            + (in_near[i, j] > 0)[:, None] * Jnear
+        t = sensor_terms(
+            self.sensor, self.observed, self._sensor_rows, P, self.landmarks(p), jacobian
         )
-        kind = unseen_kind[i, j][:, None]
-        Junseen = np.where(kind == 0, -Jd, np.where(kind == 1, -Jab, -Jnear))
-        J[where] = np.where(obs[i, j][:, None], Jseen, Junseen)
-        return res.ravel()[kept], finite(J, nan=0.0)
+        if not jacobian:
+            return t.residuals, None
+        assert JP is not None
+        # derivatives only for the violated pairs (the others' rows are zero)
+        J = np.zeros((t.residuals.size, self.n_params))
+        if t.active.size == 0:
+            return t.residuals, J
+        with np.errstate(all="ignore"):
+            rows = np.einsum("kc,kcp->kp", t.d_pose, JP[t.pose])
+            k = np.arange(t.active.size)
+            for which, coef in ((t.landmark, t.d_landmark), (t.nearest, t.d_nearest)):
+                cx, cy = self._landmark_columns(which)
+                np.add.at(rows, (k, cx), coef[:, 0])
+                np.add.at(rows, (k, cy), coef[:, 1])
+        J[t.active] = rows
+        return t.residuals, finite(J, nan=0.0)
 
     def point(self, p: np.ndarray, residual: float = 0.0) -> WitnessPoint:
         """The :class:`WitnessPoint` of a parameter vector."""
@@ -664,7 +596,8 @@ class HypothesisModel(Starts):
             return norm, None
         assert Js is not None
         grad = np.zeros((self.n_poses, self.n_params))
-        np.add.at(grad, pose, sr[:, None] * Js)
+        act = np.flatnonzero(sr > 0)  # the other pairs' rows are zero
+        np.add.at(grad, pose[act], sr[act, None] * Js[act])
         with np.errstate(invalid="ignore", divide="ignore"):
             grad = np.where(norm[:, None] > 0, grad / norm[:, None], 0.0)
         return norm, grad
