@@ -11,6 +11,21 @@ Examples
 >>> best = solution.best
 >>> cuikslam.check_truth(best, truth.pose_ids, truth.exact_poses()).ok
 True
+
+The narrowing steps one by one, as a GTSAM or Codac user builds them: a graph, its
+fixpoint (:func:`propagate`), then a stronger level on the same bounds
+(:func:`strengthen`); every step returns a :class:`Propagation`, which answers by pose
+and landmark id:
+
+>>> graph = cuikslam.KinematicGraph.from_log(log)
+>>> result = cuikslam.propagate(graph)
+>>> result.status
+<Status.CONSISTENT: 0>
+>>> result.pose_box(graph.pose_ids[0]).shape, result.landmark_box(graph.landmark_ids[0]).shape
+((3, 2), (2, 2))
+>>> stronger = cuikslam.strengthen(cuikslam.Arrays.of(graph), result.lo, result.hi, "lp", 1e-3, 1)
+>>> stronger.is_empty, stronger.lo is result.lo
+(False, True)
 """
 
 import importlib
@@ -37,14 +52,22 @@ _HOMES: dict[str, str] = {
     "Level": "cuikslam.options",
     "KinematicGraph": "cuikslam.graph.kinematic_graph",
     "propagate": "cuikslam.narrowing.propagation",
+    "narrow": "cuikslam.narrowing.propagation",
+    "Arrays": "cuikslam.narrowing.propagation",
     "Propagation": "cuikslam.narrowing.propagation",
     "Status": "cuikslam.narrowing.propagation",
+    "strengthen": "cuikslam.narrowing.consistency",
+    "StrengthenReport": "cuikslam.narrowing.consistency",
+    "tighten": "cuikslam.narrowing.polytope",
     # results
     "Solution": "cuikslam.results.solution",
     "Hypothesis": "cuikslam.results.solution",
     "check_truth": "cuikslam.results.solution",
     "read_result_file": "cuikslam.results.io",
     "write_result_file": "cuikslam.results.io",
+    "summarize": "cuikslam.results.summary",
+    "evaluate": "cuikslam.results.evaluate",
+    "Evaluation": "cuikslam.results.evaluate",
     # simulation
     "simulate_paper": "cuikslam.simulate.paper",
     "simulate_random_world": "cuikslam.simulate.random_world",
