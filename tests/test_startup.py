@@ -82,3 +82,25 @@ def test_the_main_names_are_importable_from_the_package_without_loading_them() -
         assert getattr(cuikslam, name) is not None, name
     with pytest.raises(AttributeError):
         cuikslam.no_such_name  # noqa: B018
+
+
+def test_warm_up_command_loads_every_kernel_a_paper_solve_uses() -> None:
+    code = (
+        "from cuikslam.cli.main import main\n"
+        "assert main(['warm-up', '--jobs', '1']) == 0\n"
+        "from cuikslam.hypotheses import _kernels\n"
+        "from cuikslam.interval import ops\n"
+        "from cuikslam.narrowing._propagate import propagate_arrays\n"
+        "assert _kernels.apply.signatures and propagate_arrays.signatures\n"
+        "assert {'sqrt', 'angle_of', 'cos', 'mul'} <= set(vars(ops))\n"
+    )
+    assert "numba" in loaded_after(code)  # raises when an assertion in the probe fails
+
+
+def test_warm_up_command_rejects_zero_jobs(capsys) -> None:
+    from cuikslam.cli.main import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["warm-up", "--jobs", "0"])
+    assert exit_info.value.code == 2
+    assert "--jobs: must be at least 1" in capsys.readouterr().err

@@ -331,8 +331,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_evaluate)
 
     from cuikslam.cli.calibrate import add_calibrate_parser
+    from cuikslam.cli.warm_up import add_warm_up_parser
 
     add_calibrate_parser(sub)
+    add_warm_up_parser(sub)
     return parser
 
 

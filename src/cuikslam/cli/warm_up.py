@@ -1,0 +1,131 @@
+"""``cuikslam warm-up``: compile every kernel into numba's on-disk cache, once, after an install.
+
+Without it the first command after ``pip install`` compiles the kernels itself (about a
+hundred; tens of seconds, see the README's timings) and the later ones load them from the
+cache. The kernels are split into two parts that share little code, compiled in two
+processes at once when two cores are there (``--jobs``): the narrowing (the factors'
+fixpoint, the ``lp`` level, the witness check's interval operations) and the
+correspondence search (its search, bisection and gating kernels).
+
+``python -m cuikslam.cli.warm_up PART`` compiles one part (what the second process runs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import time
+
+__all__ = ["PARTS", "add_warm_up_parser", "cache_folder", "run_warm_up", "warm_part"]
+
+PARTS = ("narrowing", "search")
+"""The kernels, in two parts that compile independently."""
+
+
+def warm_part(part: str) -> float:
+    """Compile (or load from the cache) the kernels of one part; the seconds it took.
+
+    Parameters
+    ----------
+    part : str
+        ``"narrowing"`` (fixpoint, ``lp`` level, the witness check's interval operations)
+        or ``"search"`` (the correspondence search's kernels).
+
+    Returns
+    -------
+    float
+        Seconds spent compiling or loading.
+    """
+    if part not in PARTS:
+        raise ValueError(f"unknown part {part!r}: one of {', '.join(PARTS)}")
+    from cuikslam.solver import warm_up
+
+    start = time.perf_counter()
+    if part == "search":
+        warm_up(True)
+    else:
+        warm_up(False, lp=True)
+        from cuikslam.interval import ops
+
+        ops.sqrt, ops.angle_of  # noqa: B018  (compiled on first use; the witness check's)
+    return time.perf_counter() - start
+
+
+def cache_folder() -> str:
+    """Where numba caches this installation's kernels, in words."""
+    import cuikslam
+    from cuikslam.narrowing._propagate import propagate_arrays
+
+    path = str(propagate_arrays._cache._cache_path)
+    package = os.path.dirname(os.path.abspath(cuikslam.__file__))
+    if path.startswith(package):
+        return f"the __pycache__ folders under {package}"
+    return os.path.dirname(path)  # NUMBA_CACHE_DIR or the user's cache: a folder per module
+
+
+def run_warm_up(jobs: int = 2) -> int:
+    """Compile every kernel into the cache, in ``jobs`` (1 or 2) processes; exit status.
+
+    Parameters
+    ----------
+    jobs : int
+        2 compiles the search's kernels in a second process while this one compiles the
+        narrowing's; 1 compiles both here.
+
+    Returns
+    -------
+    int
+        0 on success, else the failed process' exit status.
+    """
+    start = time.perf_counter()
+    child = None
+    if jobs > 1:
+        child = subprocess.Popen([sys.executable, "-m", "cuikslam.cli.warm_up", "search"])
+    warm_part("narrowing")
+    if child is not None:
+        status = child.wait()
+        if status != 0:
+            print(
+                f"cuikslam: error: compiling the search's kernels failed ({status})",
+                file=sys.stderr,
+            )
+            return status
+    warm_part("search")  # loads what the child compiled (or compiles it when jobs == 1)
+    print(
+        f"cuikslam's kernels are compiled and cached in {cache_folder()} "
+        f"({time.perf_counter() - start:.1f} s); later commands load them from there"
+    )
+    return 0
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
+    return value
+
+
+def add_warm_up_parser(sub: argparse._SubParsersAction) -> None:
+    """The ``warm-up`` command (imports nothing heavy: every command builds it)."""
+    p = sub.add_parser(
+        "warm-up",
+        help="compile the kernels into numba's cache once (run it after installing)",
+        description="Compile every compiled kernel into numba's on-disk cache, so that the "
+        "first real command after an install does not spend its time compiling. The cache "
+        "is beside the package (or where NUMBA_CACHE_DIR points).",
+    )
+    p.add_argument(
+        "--jobs",
+        type=_positive_int,
+        default=min(2, os.cpu_count() or 1),
+        help="processes compiling at once (default: 2 when two cores are there)",
+    )
+    p.set_defaults(func=lambda args: run_warm_up(args.jobs))
+
+
+if __name__ == "__main__":
+    warm_part(sys.argv[1])
+    sys.stdout.flush()
+    os._exit(0)  # skips finalising numba and LLVM (a noticeable part of a second)
