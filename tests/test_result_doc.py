@@ -47,6 +47,21 @@ def test_every_key_of_a_result_is_documented(documents: list[dict]) -> None:
     assert keys - named == set()
 
 
+def test_every_key_of_a_split_search_is_documented() -> None:
+    """A search split over a (thread) cluster adds its own counts and timings."""
+    pytest.importorskip("distributed", reason='needs Dask: pip install "cuikslam[distributed]"')
+    from cuikslam.cluster import dask_client
+    from cuikslam.hypotheses.distributed import search_distributed
+
+    log = simulate_paper(seed=0, unknown=True)[0]
+    with dask_client(workers=1, processes=False) as client:
+        solution = search_distributed(log, client=client, consistency="hull", max_hypotheses=10)
+    named = set(re.findall(r"[`\"]([a-z_]+)[`\"]", DOC.read_text(encoding="utf-8")))
+    keys = _keys(solution_to_json(solution))
+    assert {"tasks", "worker_cpu_s", "split_s", "client_s"} <= keys
+    assert keys - named == set()
+
+
 def test_the_search_counts_the_page_lists_are_the_search_statistics() -> None:
     text = DOC.read_text(encoding="utf-8")
     for field in dataclasses.fields(SearchStatistics):

@@ -140,8 +140,7 @@ def blas_single_thread() -> Iterator[None]:
 
     threadpoolctl limits only the libraries loaded when the block starts, and scipy ships
     its own OpenBLAS (apart from numpy's): it is loaded first, or scipy's factorisations in
-    the block would run on every core (measured: 1.1 s instead of 17 ms per SVD of a
-    1,100 x 230 Jacobian at load 3 on 2 cores).
+    the block would run on every core, many times slower on a loaded machine.
     """
     try:
         from threadpoolctl import threadpool_limits

@@ -30,7 +30,8 @@ ProgressCallback = Callable[[int, int], None]
 """Called with (done, total) as a long solve advances."""
 
 CERTIFY_MAX_POSES = 50
-"""No witness search beyond this many poses (it grows to tens of seconds at 100 poses)."""
+"""No witness search beyond this many poses (a dense least-squares problem: its time grows
+quickly with the log)."""
 SEARCH_SHARE = 0.8
 """Fraction of the time budget the correspondence search (with its survivors' stronger
 level) may use; the witness search gets the rest, and whatever the search did not need."""

@@ -40,15 +40,10 @@ Modelling choices:
   after it, nor than the first Vicon sample) to the last measurement within ``duration``.
 
 The default bounds were measured on Dataset 6 (all five robots, against the Vicon
-truth). The range error grows with the range (99th percentile about 0.12–0.13 of the
-reading from 1 to 7 m): with ``±(0.1 m + 0.13 r)`` 5 of the 15,365 landmark sightings
-with truth miss it (all gross outliers), against 132 with a constant ±0.6 m of about
-the same median width. 99 % of bearing errors are below 0.034–0.063 rad (bound
-0.1 rad). With the lag of 1 s, 2 of 11,966 moves miss the truth (by < 3 mm), against
-0–7 per robot for commands taken at face value with ± 0.07 m/s and ± 0.5 rad/s, whose
-heading boxes grow twice as fast. **They do not hold for every measurement**: MRCLAM
-has gross outliers (ranges off by up to ~3 m and bearings by up to ~3 rad on robots 3
-and 5).
+truth); the range bound grows with the range, as the camera's error does. How many
+measurements miss them is in ``docs/real-data.md``. **They do not hold for every
+measurement**: MRCLAM has gross outliers (ranges off by up to ~3 m and bearings by up to
+~3 rad on robots 3 and 5).
 A log with a measurement outside its interval is not guaranteed; measure bounds for
 your run (``cuikslam calibrate``) and expect a few outliers to need declaring.
 """

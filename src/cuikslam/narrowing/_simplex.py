@@ -3,11 +3,10 @@
 The LPs of a window (:mod:`.lp_bounds`) share their rows and column bounds: only the
 variable minimised or maximised changes. HiGHS solves the first one; its optimal basis
 stays primal feasible for every other cost, so the rest need only primal simplex phase 2.
-On these small LPs (a few hundred rows, about a hundred columns) HiGHS spends a fixed
-~0.15 ms per call and ~30 us per iteration; this kernel works on the dense inverse of the
-active constraints (one per column: a vertex is where ``n`` constraints hold with
-equality), a few microseconds per iteration, and computes each safe bound in the same
-pass.
+On these small LPs (a few hundred rows, about a hundred columns) HiGHS's fixed cost per
+call dominates (figures in the README, "Consistency levels"); this kernel works on the
+dense inverse of the active constraints (one per column: a vertex is where ``n``
+constraints hold with equality), and computes each safe bound in the same pass.
 
 Nothing here needs to be exact: the simplex only proposes multipliers, and every bound is
 re-derived from them in interval arithmetic (:func:`.safe_bound.safe_bound`). A kernel that
@@ -77,8 +76,9 @@ def _dense_rows(
 
 @jit
 def _inverse(matrix: np.ndarray) -> np.ndarray:
-    """Gauss-Jordan inverse with partial pivoting; an empty array when singular (a
-    threaded BLAS on a loaded machine took 0.2 s for what this does in a millisecond)."""
+    """Gauss-Jordan inverse with partial pivoting; an empty array when singular (on such
+    small matrices a threaded BLAS on a loaded machine spends far more on its threads than
+    on the work)."""
     n = matrix.shape[0]
     a = matrix.copy()
     inv = np.eye(n)

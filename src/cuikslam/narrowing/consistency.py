@@ -10,13 +10,16 @@
   solved as one sequence (:func:`.lp_bounds.certified_bounds`: HiGHS, then a compiled
   simplex from its basis); on long logs the sweeps from the 4th reuse the last LPs'
   multipliers instead of solving LPs (``sweeps.REUSE_FROM``). Correlation-aware, so it removes
-  most of the wrapping effect: within 1.31x of the exact hull on the seed's experiment.
+  most of the wrapping effect.
   Its cost grows linearly with the log (every window has a bounded size), so ``auto`` is
   ``lp`` at any length.
 - ``lp-split``: ``lp``, then the widest headings are bisected one after the other; each
   half is narrowed at level ``lp`` and the hull of the halves is kept. The linearisations
-  are tighter on half the heading interval. About 2.5 times the cost of ``lp``, for
-  boxes within 1.22x of the exact hull on the seed's experiment.
+  are tighter on half the heading interval. Tighter boxes than ``lp``, for a few times
+  its cost.
+
+How close each level comes to the exact hull, and at what cost, is measured in the
+README ("Consistency levels", "Measured figures"; ``benchmarks/``), not here.
 
 Every level is sound: the boxes still contain every solution, and an empty result is a
 proof that the constraints have no solution.

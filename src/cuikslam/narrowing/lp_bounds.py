@@ -15,8 +15,9 @@ from a previous basis and did not reach an optimum is solved once more from scra
 
 The LPs of one call differ only in their cost, so after HiGHS's first optimum the others
 are solved by a compiled primal simplex (:mod:`._simplex`) from the last optimum: on these
-small LPs HiGHS costs a fixed ~0.15 ms per call and ~30 us per iteration, the kernel
-~10 us per iteration. An LP the kernel cannot finish goes back to HiGHS.
+small LPs HiGHS's fixed cost per call dominates, and the kernel's iterations are cheaper
+than HiGHS's (figures in the README, "Consistency levels"). An LP the kernel cannot
+finish goes back to HiGHS.
 """
 
 from __future__ import annotations

@@ -41,12 +41,13 @@ REUSE_FROM = 3
 """From this sweep on (counting from 0), no LP is solved: each bound is the safe bound of
 the multipliers of its last LP over the window's new relaxation (see
 ``lp_bounds.certified_bounds(reuse=True)``). It follows the neighbours' narrowing while
-the LP's optimal basis stays optimal; on the octagon the LPs of the 4th and 5th sweeps
-gained 1 % for a third of the LPs."""
+the LP's optimal basis stays optimal (measured in the README, "Measured figures": long
+logs)."""
 REUSE_MIN_WINDOWS = 8
 """Logs with fewer windows solve every sweep's LPs: there the later sweeps gain from the
 relaxation of narrower boxes, not only from the neighbours (on the seed's experiment, one
-window, reusing multipliers took the worst box from 1.30 to 1.57 times the inner hull)."""
+window, reusing multipliers made the worst box markedly wider; README, "Measured
+figures")."""
 FULL_ROUND_EVERY = 3
 """Every this many sweeps, stale bounds are solved again all the same."""
 UNSTALE_SHRINK = 0.02
