@@ -52,6 +52,7 @@ from cuikslam.graph.encoding import (
 from cuikslam.narrowing.polytope import LpStatistics, WarmStarts, tighten
 from cuikslam.narrowing.propagation import Arrays, Propagation, Status, narrow
 from cuikslam.narrowing.sweeps import polytope_rounds
+from cuikslam.options import Level, SolveOptions
 
 __all__ = [
     "BUDGET_SUFFIX",
@@ -63,9 +64,10 @@ __all__ = [
     "warm_up_lp",
 ]
 
-LEVELS = ("hull", "lp", "lp-split")
-DEFAULT_LEVEL = "auto"
-"""``lp``, whatever the length of the log (see :func:`resolve_level`)."""
+LEVELS = tuple(str(level) for level in Level if level is not Level.AUTO)
+"""The levels :func:`strengthen` runs (:class:`~cuikslam.options.Level` without ``auto``)."""
+DEFAULT_LEVEL = str(SolveOptions.consistency)
+"""``auto``: ``lp``, whatever the length of the log (see :func:`resolve_level`)."""
 SPLIT_HEADINGS = 2
 """Headings bisected by the ``lp-split`` level (the widest first)."""
 BUDGET_SUFFIX = " (budget)"
