@@ -174,14 +174,8 @@ def propagate(
     graph : KinematicGraph
     lo, hi : ndarray, optional
         Starting bounds (copied, not modified); the graph's initial domains by default.
-    touched : ndarray of int, optional
-        Factors to apply first (incremental propagation); all factors by default.
-    rtol : float
-        Relative shrink below which a variable wakes no other factor.
-    max_rounds : int
-        Local repetitions of a factor's sub-operators.
-    max_applications : int
-        Budget of operator applications.
+    touched, rtol, max_rounds, max_applications
+        As in :func:`narrow`.
 
     Returns
     -------
