@@ -93,6 +93,8 @@ def test_warm_up_command_loads_every_kernel_a_paper_solve_uses() -> None:
         "from cuikslam.narrowing._propagate import propagate_arrays\n"
         "assert _kernels.apply.signatures and propagate_arrays.signatures\n"
         "assert {'sqrt', 'angle_of', 'cos', 'mul'} <= set(vars(ops))\n"
+        "import importlib.util, os, cuikslam.solver\n"
+        "assert os.path.exists(importlib.util.cache_from_source(cuikslam.solver.__file__))\n"
     )
     assert "numba" in loaded_after(code)  # raises when an assertion in the probe fails
 
