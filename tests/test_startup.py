@@ -106,3 +106,14 @@ def test_warm_up_command_rejects_zero_jobs(capsys) -> None:
         main(["warm-up", "--jobs", "0"])
     assert exit_info.value.code == 2
     assert "--jobs: must be at least 1" in capsys.readouterr().err
+
+
+def test_a_run_that_compiled_the_kernels_says_so_on_stderr(capsys) -> None:
+    from cuikslam.cli.warm_up import COMPILE_NOTE_S, note_compiling
+
+    note_compiling({"warm_up_s": COMPILE_NOTE_S + 1.0})
+    out, err = capsys.readouterr()
+    assert out == "" and "compiled the kernels" in err and "cuikslam warm-up" in err
+    note_compiling({"warm_up_s": COMPILE_NOTE_S / 10})
+    note_compiling({})
+    assert capsys.readouterr() == ("", "")

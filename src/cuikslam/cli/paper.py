@@ -9,6 +9,7 @@ from rich.table import Table
 
 from cuikslam.budget import DEFAULT_TIME_BUDGET
 from cuikslam.cli._common import check_figure_path, check_output_path, write_output
+from cuikslam.cli.warm_up import note_compiling
 from cuikslam.results.association import truth_verdict
 from cuikslam.results.io import write_result_file
 from cuikslam.results.solution import PROVEN, Solution
@@ -105,6 +106,7 @@ def run_paper(
         check_figure_path(figure)
     log, truth = simulate_paper(seed=seed)
     solution = solve(log, time_budget=time_budget)
+    note_compiling(solution.timings)
     if solution.refuted:  # cannot happen with a correct solver: the simulated log is consistent
         console.print("error: the simulated experiment was refuted; please report this bug")
         return 1

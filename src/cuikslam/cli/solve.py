@@ -12,6 +12,7 @@ from rich.console import Console
 from cuikslam._atomic import atomic_open
 from cuikslam.budget import command_budget
 from cuikslam.cli._common import CommandError, check_output_path, progress_bar, write_output
+from cuikslam.cli.warm_up import note_compiling
 from cuikslam.log.reader import read_log_file
 from cuikslam.options import SolveOptions
 from cuikslam.results.association import named_landmarks, truth_verdict
@@ -154,6 +155,7 @@ def run_solve(
             on_survivor=on_survivor,
             search=search,
         )
+    note_compiling(solution.timings)
     if json_path:
         write_output(json_path, lambda: write_result_file(solution, json_path))
     if csv_path:

@@ -21,16 +21,38 @@ import sys
 import time
 
 __all__ = [
+    "COMPILE_NOTE_S",
     "PARTS",
     "add_warm_up_parser",
     "byte_compile",
     "cache_folder",
+    "note_compiling",
     "run_warm_up",
     "warm_part",
 ]
 
 PARTS = ("narrowing", "search")
 """The kernels, in two parts that compile independently."""
+COMPILE_NOTE_S = 5.0
+"""A solve whose warm-up took longer than this compiled its kernels: the command says so."""
+
+
+def note_compiling(timings: dict[str, float]) -> None:
+    """Say on stderr that this run compiled the kernels, when its warm-up took that long.
+
+    Parameters
+    ----------
+    timings : dict
+        ``Solution.timings`` (its ``warm_up_s``).
+    """
+    seconds = timings.get("warm_up_s", 0.0)
+    if seconds > COMPILE_NOTE_S:
+        print(
+            f"cuikslam: this run compiled the kernels ({seconds:.0f} s); they are cached "
+            "now, so later runs start at once (`cuikslam warm-up` does it right after "
+            "installing)",
+            file=sys.stderr,
+        )
 
 
 def warm_part(part: str) -> float:
