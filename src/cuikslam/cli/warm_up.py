@@ -2,10 +2,11 @@
 
 Without it the first command after ``pip install`` compiles the kernels itself (about a
 hundred; tens of seconds, see the README's timings) and the later ones load them from the
-cache. The kernels are split into two parts that share little code, compiled in two
-processes at once when two cores are there (``--jobs``): the narrowing (the factors'
-fixpoint, the ``lp`` level, the witness check's interval operations) and the
-correspondence search (its search, bisection and gating kernels). It also byte-compiles
+cache. The kernels are in two parts: the narrowing (the factors' fixpoint, the ``lp``
+level, the witness check's interval operations) and the correspondence search (its
+search, bisection and gating kernels); ``--jobs 2`` compiles them in two processes at
+once. That costs about a third more CPU (both compile the interval core): measured on a
+busy machine it was slower (README, *Developing*), it can only pay on two free cores. It also byte-compiles
 the package's modules (``compileall``) where pip did not (an editable install, or
 ``PYTHONDONTWRITEBYTECODE`` set): importing them from source costs about 0.2 s a command.
 
@@ -112,7 +113,7 @@ def byte_compile() -> bool:
     return bool(compileall.compile_dir(folder, quiet=2))
 
 
-def run_warm_up(jobs: int = 2) -> int:
+def run_warm_up(jobs: int = 1) -> int:
     """Compile every kernel into the cache, in ``jobs`` (1 or 2) processes; exit status.
 
     Parameters
@@ -167,8 +168,8 @@ def add_warm_up_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--jobs",
         type=_positive_int,
-        default=min(2, os.cpu_count() or 1),
-        help="processes compiling at once (default: 2 when two cores are there)",
+        default=1,
+        help="processes compiling at once (default 1; 2 pays only on two free cores)",
     )
     p.set_defaults(func=lambda args: run_warm_up(args.jobs))
 
