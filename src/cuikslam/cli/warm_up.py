@@ -6,9 +6,10 @@ cache. The kernels are in two parts: the narrowing (the factors' fixpoint, the `
 level, the witness check's interval operations) and the correspondence search (its
 search, bisection and gating kernels); ``--jobs 2`` compiles them in two processes at
 once. That costs about a third more CPU (both compile the interval core): measured on a
-busy machine it was slower (README, *Developing*), it can only pay on two free cores. It also byte-compiles
-the package's modules (``compileall``) where pip did not (an editable install, or
-``PYTHONDONTWRITEBYTECODE`` set): importing them from source costs about 0.2 s a command.
+busy machine it was slower (README, *Developing*), it can only pay on two free cores.
+It also byte-compiles the package's modules (``compileall``) where pip did not (an
+editable install, or ``PYTHONDONTWRITEBYTECODE`` set): importing them from source costs
+about 0.2 s a command.
 
 ``python -m cuikslam.cli.warm_up PART`` compiles one part (what the second process runs).
 """
