@@ -427,6 +427,33 @@ def test_sensor_jacobian_matches_finite_differences(nearest_margin: float | None
     assert checked > 20
 
 
+def test_sensor_scales_keep_which_pairs_are_violated() -> None:
+    """The optimisers see sensor violations in the ranges' and bearings' half-widths: the
+    same pairs violated as in metres and radians, each by its amount over its scale."""
+    from cuikslam.hypotheses.witness._sensor import sensor_terms
+
+    log, truth = _dense_unknown_world()
+    model = HypothesisModel(log, truth.assignment)
+    length, angle = model.sensor_scales
+    assert 0 < length < 1 and 0 < angle < 1  # 5 cm and 1 degree bounds, not the default 1
+    rng = np.random.default_rng(3)
+    violated = 0
+    for _ in range(10):
+        p = model.initial_params(None, None, rng=rng)
+        scaled, _ = model.sensor_residuals(p)
+        P, _ = model.poses(p)
+        plain = sensor_terms(
+            model.sensor, model.observed, model._sensor_rows, P, model.landmarks(p), False
+        ).residuals
+        assert np.array_equal(scaled > 0, plain > 0)
+        # a violation sums (seen) or takes the least (unseen) of its clauses' amounts
+        ratio = scaled[plain > 0] / plain[plain > 0]
+        low, high = 1 / max(length, angle), 1 / min(length, angle)
+        assert np.all((ratio >= low * (1 - 1e-9)) & (ratio <= high * (1 + 1e-9)))
+        violated += int(np.sum(plain > 0))
+    assert violated > 0
+
+
 def test_sensor_rows_per_pose_keep_the_objective() -> None:
     """One sensor residual per pose is the root of the sum of squares of its pairs."""
     log, truth = _dense_unknown_world()

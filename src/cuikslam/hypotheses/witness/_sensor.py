@@ -64,10 +64,14 @@ def sensor_terms(
     P: np.ndarray,
     L: np.ndarray,
     jacobian: bool,
+    scales: tuple[float, float] = (1.0, 1.0),
 ) -> SensorTerms:
     """The sensor violations of the pairs ``kept`` (flat indices ``pose * m + landmark``)
     for poses ``P`` (n, 3) and landmarks ``L`` (m, 2), ``observed`` (n, m) saying which
-    pairs are observed; derivatives only when ``jacobian``."""
+    pairs are observed; derivatives only when ``jacobian``. Distance violations are
+    divided by ``scales[0]``, angle violations by ``scales[1]`` (the optimisers weigh them
+    against checks measured in half-widths)."""
+    length, angle = scales
     n, m = observed.shape
     dx = L[None, :, 0] - P[:, None, 0]
     dy = L[None, :, 1] - P[:, None, 1]
@@ -78,18 +82,20 @@ def sensor_terms(
     all_round = sensor.fov >= 2 * math.pi
     half = sensor.fov / 2.0
     # violations (> 0: violated) of "in view" and "out of view" clauses, with their kinds
-    in_range = d - (sensor.max_range - delta)
-    out_range = (sensor.max_range + delta) - d if math.isfinite(sensor.max_range) else inf
-    in_fov = -inf if all_round else np.abs(beta) - (half - delta)
-    out_fov = inf if all_round else (half + delta) - np.abs(beta)
+    in_range = (d - (sensor.max_range - delta)) / length
+    out_range = (
+        ((sensor.max_range + delta) - d) / length if math.isfinite(sensor.max_range) else inf
+    )
+    in_fov = -inf if all_round else (np.abs(beta) - (half - delta)) / angle
+    out_fov = inf if all_round else ((half + delta) - np.abs(beta)) / angle
     visible = (d <= sensor.max_range) & (all_round | (np.abs(beta) <= half))
     if sensor.nearest_margin is not None:
         dv = np.where(visible, d, np.inf)
         nearest_j = np.argmin(dv, axis=1)
         nearest = dv[np.arange(n), nearest_j]
         limit = nearest[:, None] + sensor.nearest_margin
-        in_near = np.where(np.isfinite(limit), d - (limit - delta), -np.inf)
-        out_near = np.where(np.isfinite(limit), (limit + delta) - d, np.inf)
+        in_near = np.where(np.isfinite(limit), (d - (limit - delta)) / length, -np.inf)
+        out_near = np.where(np.isfinite(limit), ((limit + delta) - d) / length, np.inf)
     else:
         nearest_j = np.zeros(n, dtype=np.int64)
         in_near = -inf
@@ -112,15 +118,15 @@ def sensor_terms(
     u, v, s_ = dx[i, j], dy[i, j], d_safe[i, j]
     q = r2[i, j]
     # d(distance), d(bearing), d(|bearing|), d(distance - nearest distance): pose, landmark
-    dd_pose = np.stack([-u / s_, -v / s_, np.zeros(k)], axis=1)
-    dd_land = np.stack([u / s_, v / s_], axis=1)
-    db_pose = np.stack([v / q, -u / q, -np.ones(k)], axis=1)
-    db_land = np.stack([-v / q, u / q], axis=1)
+    dd_pose = np.stack([-u / s_, -v / s_, np.zeros(k)], axis=1) / length
+    dd_land = np.stack([u / s_, v / s_], axis=1) / length
+    db_pose = np.stack([v / q, -u / q, -np.ones(k)], axis=1) / angle
+    db_land = np.stack([-v / q, u / q], axis=1) / angle
     sign = np.sign(beta[i, j])[:, None]
     jn = nearest_j[i]
     un, vn, sn = dx[i, jn], dy[i, jn], d_safe[i, jn]
-    dn_pose = dd_pose - np.stack([-un / sn, -vn / sn, np.zeros(k)], axis=1)
-    dn_near = -np.stack([un / sn, vn / sn], axis=1)
+    dn_pose = dd_pose - np.stack([-un / sn, -vn / sn, np.zeros(k)], axis=1) / length
+    dn_near = -np.stack([un / sn, vn / sn], axis=1) / length
     obs = observed[i, j][:, None]
     kind = unseen_kind[i, j][:, None]
     w_range = np.where(obs, 1.0 * (in_range[i, j] > 0)[:, None], -1.0 * (kind == 0))

@@ -74,6 +74,13 @@ def aim_margin(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(half), np.maximum(margin, 0.0), MIN_MARGIN)
 
 
+def _typical_half_width(lo: np.ndarray, hi: np.ndarray) -> float:
+    """The median half-width of the bounded, non-degenerate intervals (1.0 without any)."""
+    half = half_width(lo, hi)
+    half = half[np.isfinite(half) & (half > 0)]
+    return float(np.median(half)) if half.size else 1.0
+
+
 def _pair(bounds: tuple[float, float] | None) -> tuple[float, float]:
     if bounds is None:
         return (math.nan, math.nan)
@@ -325,6 +332,16 @@ class HypothesisModel(Starts):
         self._sensor_rows = np.arange(n * m)
         """The (pose, landmark) pairs, flattened, whose sensor violation the optimisers see."""
         self._rows = np.arange(len(obs_pose))
+        self.sensor_scales = (
+            _typical_half_width(
+                self.check_lo[: len(self.range_sel)], self.check_hi[: len(self.range_sel)]
+            ),
+            _typical_half_width(
+                obs_bearing_a[self.bearing_sel, 0], obs_bearing_a[self.bearing_sel, 1]
+            ),
+        )
+        """Sensor violations (m, rad) are measured in these lengths and angles for the
+        optimisers: the median half-widths of the ranges and bearings (1 without any)."""
         self._memo: tuple[bytes, np.ndarray, np.ndarray | None] | None = None
 
     # ------------------------------------------------------------------ sizes
@@ -517,8 +534,9 @@ class HypothesisModel(Starts):
             return np.zeros(0), (np.zeros((0, self.n_params)) if jacobian else None)
         P, JP = self.poses(p, jacobian)
         t = sensor_terms(
-            self.sensor, self.observed, self._sensor_rows, P, self.landmarks(p), jacobian
-        )
+            self.sensor, self.observed, self._sensor_rows, P, self.landmarks(p), jacobian,
+            self.sensor_scales,
+        )  # fmt: skip
         if not jacobian:
             return t.residuals, None
         assert JP is not None
