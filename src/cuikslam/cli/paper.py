@@ -9,6 +9,7 @@ from rich.table import Table
 
 from cuikslam.budget import DEFAULT_TIME_BUDGET
 from cuikslam.cli._common import check_figure_path, check_output_path, write_output
+from cuikslam.cli.figure_job import start_figure
 from cuikslam.cli.warm_up import note_compiling
 from cuikslam.results.association import truth_verdict
 from cuikslam.results.io import write_result_file
@@ -104,12 +105,17 @@ def run_paper(
         check_output_path(json_path)
     if figure:
         check_figure_path(figure)
+    drawing = start_figure(figure) if figure else None  # a process importing Matplotlib
     log, truth = simulate_paper(seed=seed)
     solution = solve(log, time_budget=time_budget)
     note_compiling(solution.timings)
     if solution.refuted:  # cannot happen with a correct solver: the simulated log is consistent
+        if drawing is not None:
+            drawing.cancel()
         console.print("error: the simulated experiment was refuted; please report this bug")
         return 1
+    if drawing is not None:
+        drawing.send(solution, truth)  # drawn while the second part is solved
     best = solution.best
     console.print(
         f"The seed paper's experiment (noise seed {seed}): 9 poses around a 30 m room, "
@@ -135,10 +141,7 @@ def run_paper(
     ok &= _unknown_correspondence(seed, console, time_budget)
     if json_path:
         write_output(json_path, lambda: write_result_file(solution, json_path))
-    if figure:
-        from cuikslam.results.figures import plot_solution, save_figure
-
-        drawing = plot_solution(solution, truth)
-        write_output(figure, lambda: save_figure(drawing, figure))
+    if drawing is not None:
+        drawing.finish()
         print(f"wrote {figure}", file=sys.stderr)
     return 0 if ok else 1
