@@ -50,12 +50,17 @@ def _bisections(log: Log, prefixes: list[list[int]] | None = None) -> list[Bisec
     return out
 
 
+def _no_bisection_after_the_search(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(search, "BISECTION_MIN_PARTS", 0)
+    monkeypatch.setattr(search, "BISECTION_PARTS_PER_NODE", 0)
+
+
 def test_bisection_refutes_survivors_and_keeps_the_truth(
     log: Log, truth: Truth, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     bisected = solve_unknown(log, consistency="hull")
-    monkeypatch.setattr(search, "BISECTION_MIN_PARTS", 0)
-    monkeypatch.setattr(search, "BISECTION_PARTS_PER_NODE", 0)
+    _no_bisection_after_the_search(monkeypatch)
+    monkeypatch.setattr(search, "LEAF_BISECTION_PARTS", 0)
     whole = solve_unknown(log, consistency="hull")
     assert bisected.complete and whole.complete
     assert whole.statistics["refuted_by_bisection"] == 0
@@ -69,6 +74,22 @@ def test_bisection_refutes_survivors_and_keeps_the_truth(
     assert i >= 0, "bisection refuted the true correspondence"
     assert truth_misses(bisected.hypotheses[i], truth, named) == []
     assert any("bisection proved" in m for m in bisected.messages)
+
+
+def test_leaves_refuted_by_bisection_are_never_survivors(
+    log: Log, truth: Truth, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Bisected as the search reaches them (the survivors' round after it is off), refuted
+    leaves are neither counted nor streamed; the truth is among those left."""
+    _no_bisection_after_the_search(monkeypatch)
+    streamed: list[list[str]] = []
+    solution = solve_unknown(log, consistency="hull", on_survivor=streamed.append)
+    assert solution.complete and solution.statistics["refuted_by_bisection"] > 0
+    assert len(streamed) == solution.statistics["survivors"] == len(solution.hypotheses)
+    named = {r.landmark for r in log.landmark_priors}
+    i = true_index(solution, truth, named)
+    assert i >= 0, "bisection refuted the true correspondence"
+    assert truth_misses(solution.hypotheses[i], truth, named) == []
 
 
 def test_a_box_with_nothing_to_split_ends_the_bisection(log: Log, truth: Truth) -> None:

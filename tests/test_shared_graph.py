@@ -101,6 +101,7 @@ def test_maintenance_changes_no_result(
     # many survivors make the comparison strong: bisection would refute most of them
     monkeypatch.setattr(search, "BISECTION_MIN_PARTS", 0)
     monkeypatch.setattr(search, "BISECTION_PARTS_PER_NODE", 0)
+    monkeypatch.setattr(search, "LEAF_BISECTION_PARTS", 0)
     monkeypatch.setattr(_shared, "MIN_MAINTENANCE_LOAD", 10**12)
     never = solve_unknown(log, consistency="hull", max_nodes=300, local_frame=False)
     calls = {"rebase": 0, "compact": 0}

@@ -184,16 +184,21 @@ def summary_holds(document: dict, assignment: list[str], named: set[str]) -> boo
     )
 
 
-def describe(summary: CorrespondenceSummary, survivors: int) -> str:
-    """One line a user reads first: certain associations, independent ambiguities."""
+def describe(summary: CorrespondenceSummary, survivors: int, complete: bool = True) -> str:
+    """One line a user reads first: certain associations, independent ambiguities.
+
+    When the search was cut short (``complete`` False) the line speaks of the survivors
+    found, since unexplored subtrees may hold other associations.
+    """
     n = len(summary.certain)
     certain = sum(summary.certain)
+    scope = "" if complete else "in the survivors found so far (the search is incomplete), "
     if not summary.factors:
-        return f"all {n} observations are associated for certain"
+        return f"{scope}all {n} observations are associated for certain"
     sizes = " x ".join(str(len(f.choices)) for f in summary.factors)
     groups = len(summary.factors)
     return (
-        f"{certain} of {n} observations are associated for certain; {n - certain} "
+        f"{scope}{certain} of {n} observations are associated for certain; {n - certain} "
         f"{'is' if n - certain == 1 else 'are'} ambiguous, in {groups} independent "
         f"group{'' if groups == 1 else 's'} ({sizes} = {summary.combinations} combinations: "
         f"the {survivors} survivors)"
