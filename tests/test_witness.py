@@ -174,6 +174,21 @@ def test_unproven_hypotheses_stay_not_refuted() -> None:
     assert h.status == NOT_REFUTED and h.witness is None
 
 
+def test_proven_hypotheses_rank_before_undecided_ones() -> None:
+    """certify ranks again: a proven hypothesis moves ahead of an undecided one that had
+    ranked first, and the message names the undecided one by its new rank."""
+    log, _ = simulate_paper(0)
+    solution = solve(log, certify_limit=0)
+    right = solution.best
+    wrong = replace(right, assignment=["L3", *right.assignment[1:]])
+    solution.hypotheses = [wrong, right]
+    certify(log, solution, restarts=2)
+    assert [h.status for h in solution.hypotheses] == [PROVEN, NOT_REFUTED]
+    assert solution.hypotheses[0] is right and solution.hypotheses[1] is wrong
+    assert solution.messages[-1].endswith("undecided (not refuted, not proven): 2")
+    assert [h.rank_key for h in solution.hypotheses] == sorted(h.rank_key for h in [wrong, right])
+
+
 def test_inner_hull_lies_inside_the_boxes() -> None:
     log, _ = simulate_random_world(4, n_poses=6, n_landmarks=4, max_range=10.0)
     h = solve(log).best

@@ -184,9 +184,9 @@ def solve(
     if n_poses > CERTIFY_MAX_POSES:
         certify_limit = 0  # the witness search is a dense least-squares problem
     certify_start = time.perf_counter()
-    certify(
-        log, replace(solution, hypotheses=solution.hypotheses[:certify_limit]), deadline=deadline
-    )
+    certified = replace(solution, hypotheses=solution.hypotheses[:certify_limit])
+    certify(log, certified, deadline=deadline)
+    solution.hypotheses[:certify_limit] = certified.hypotheses  # proven ones now rank first
     solution.timings["certify_s"] = time.perf_counter() - certify_start
     solution.timings["total_s"] = time.perf_counter() - start
     solution.timings["warm_up_s"] = warm_up_s

@@ -57,6 +57,15 @@ class Hypothesis:
         )
         return float(widths.sum())
 
+    @property
+    def rank_key(self) -> tuple[bool, int, float]:
+        """How hypotheses are ranked, best first: proven consistent before undecided (an
+        undecided one may still be impossible), then fewest landmarks (a new landmark
+        explains any observation, so the fewest is the most constrained explanation), then
+        smallest boxes. It is an order, not a probability: every reported hypothesis is
+        possible or undecided, and the guarantee holds whichever is true."""
+        return (self.status != PROVEN, self.n_landmarks, self.box_size)
+
     def pose(self, pose_id: int) -> np.ndarray:
         """The (3, 2) box of one pose."""
         return self.poses[self.pose_ids.index(pose_id)]

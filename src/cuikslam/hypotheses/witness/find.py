@@ -413,7 +413,9 @@ def certify(
     :func:`verify_witness`; on success ``status`` becomes ``PROVEN`` and ``witness`` holds
     ``poses_xyt`` (rows in the hypothesis' ``pose_ids`` order) and ``landmarks_xy`` (rows in
     its ``landmark_ids`` order); otherwise they become (or stay) ``NOT_REFUTED`` without a
-    witness. Hypotheses beyond ``max_hypotheses`` are untouched.
+    witness. The decided hypotheses are then ranked again, proven ones first
+    (:attr:`~cuikslam.results.Hypothesis.rank_key`); those beyond ``max_hypotheses`` are
+    untouched.
 
     The hypotheses share the budget round-robin: every one gets its first two starts (most
     consistent hypotheses are proven by the first), then the unproven ones get random
@@ -450,11 +452,9 @@ def certify(
             search.run(batch if most is None else min(batch, most - search.tried))
         batch = min(2 * batch, 32)
     proven = 0
-    unfinished = []
-    for rank, (h, search) in enumerate(zip(chosen, searches, strict=True), start=1):
+    for h, search in zip(chosen, searches, strict=True):
         if search.box is None:
             h.status, h.witness = NOT_REFUTED, None
-            unfinished.append(rank)
             continue
         point = search.point
         assert point is not None
@@ -469,6 +469,10 @@ def certify(
         h.status = PROVEN
         h.witness = {"poses_xyt": poses, "landmarks_xy": landmarks}
         proven += 1
+    # proven ones first (see Hypothesis.rank_key); the order is otherwise kept
+    chosen.sort(key=lambda h: h.rank_key)
+    solution.hypotheses[: len(chosen)] = chosen
+    unfinished = [rank for rank, h in enumerate(chosen, start=1) if h.status != PROVEN]
     solution.timings["certify_s"] = time.perf_counter() - start
     solution.statistics["proven_hypotheses"] = proven
     solution.statistics["undecided_hypotheses"] = len(unfinished)
