@@ -75,11 +75,13 @@ def timed(owner, name, key):
     setattr(owner, name, wrapper)
 
 import cuikslam.solver as solver
+import cuikslam.hypotheses.explorer as explorer
 import cuikslam.hypotheses.search as search
 timed(solver, "warm_up", "kernels loaded (warm_up)")
 timed(solver, "certify", lambda log, *a: "witness search " + (
     "(unknown)" if log.has_unknown_correspondence else "(known)"))
 timed(search, "refute_by_bisection", "bisection")
+timed(explorer, "refute_by_bisection", "bisection")
 timed(solver, "solve_unknown", "search (+ lp on survivors)")
 timed(solver, "_solve_known", "known correspondence (hull + lp)")
 timed(paper, "simulate_paper", "simulate")

@@ -17,8 +17,8 @@ import pytest
 import cuikslam.hypotheses.search as search
 from cuikslam.hypotheses import solve_unknown
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
+from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.problem import build_problem
-from cuikslam.hypotheses.search import Explorer
 from cuikslam.log import Log, read_log_file
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
 from worlds import Truth, correspondence, true_index, truth_misses
@@ -60,7 +60,7 @@ def test_bisection_refutes_survivors_and_keeps_the_truth(
 ) -> None:
     bisected = solve_unknown(log, consistency="hull")
     _no_bisection_after_the_search(monkeypatch)
-    monkeypatch.setattr(search, "LEAF_BISECTION_PARTS", 0)
+    monkeypatch.setattr("cuikslam.hypotheses.explorer.LEAF_BISECTION_PARTS", 0)
     whole = solve_unknown(log, consistency="hull")
     assert bisected.complete and whole.complete
     assert whole.statistics["refuted_by_bisection"] == 0

@@ -33,8 +33,8 @@ from hypothesis.errors import UnsatisfiedAssumption
 
 from cuikslam.hypotheses import solve_unknown
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
+from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.problem import build_problem
-from cuikslam.hypotheses.search import Explorer
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
 from cuikslam.results.solution import Solution
 from cuikslam.solver import solve

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from cuikslam.hypotheses.search import SearchStatistics
+from cuikslam.hypotheses.explorer import SearchStatistics
 from cuikslam.results.io import solution_to_json
 from cuikslam.simulate import simulate_paper
 from cuikslam.solver import solve

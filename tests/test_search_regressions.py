@@ -87,7 +87,7 @@ def test_a_budget_stop_without_survivors_is_not_a_failed_truth_check() -> None:
 def test_survivors_refuted_by_the_stronger_level_leave_the_summary(monkeypatch) -> None:
     """A survivor the survivors' stronger level refutes is gone from the count and from
     the correspondence summary, not only from the reported hypotheses."""
-    from cuikslam.hypotheses.search import Explorer
+    from cuikslam.hypotheses.explorer import Explorer
     from cuikslam.simulate import simulate_paper
 
     log, _ = simulate_paper(seed=0, unknown=True)

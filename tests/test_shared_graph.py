@@ -15,8 +15,9 @@ from cuikslam.graph.encoding import KIND, NO_FACTOR, OBSERVATION, ODOMETRY
 from cuikslam.hypotheses import _shared, search, solve_unknown
 from cuikslam.hypotheses._gates import gate
 from cuikslam.hypotheses._shared import EMPTY_OVERLAY, Overlay, SharedGraph
+from cuikslam.hypotheses.explorer import Budget, Explorer, Node
 from cuikslam.hypotheses.problem import build_problem
-from cuikslam.hypotheses.search import Budget, Explorer, Node, explore
+from cuikslam.hypotheses.search import explore
 from cuikslam.narrowing._factors import fresh_memory
 from cuikslam.narrowing._propagate import INCONSISTENT, propagate_arrays, propagate_buffered
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL
@@ -101,7 +102,7 @@ def test_maintenance_changes_no_result(
     # many survivors make the comparison strong: bisection would refute most of them
     monkeypatch.setattr(search, "BISECTION_MIN_PARTS", 0)
     monkeypatch.setattr(search, "BISECTION_PARTS_PER_NODE", 0)
-    monkeypatch.setattr(search, "LEAF_BISECTION_PARTS", 0)
+    monkeypatch.setattr("cuikslam.hypotheses.explorer.LEAF_BISECTION_PARTS", 0)
     monkeypatch.setattr(_shared, "MIN_MAINTENANCE_LOAD", 10**12)
     never = solve_unknown(log, consistency="hull", max_nodes=300, local_frame=False)
     calls = {"rebase": 0, "compact": 0}

@@ -28,14 +28,12 @@ from typing import Any
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
+from cuikslam.hypotheses.explorer import Explorer, Node, SearchStatistics
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.search import (
     DEFAULT_MAX_HYPOTHESES,
     DEFAULT_STRENGTHEN_DURING,
     DEFAULT_STRENGTHEN_LIMIT,
-    Explorer,
-    Node,
-    SearchStatistics,
     _Tally,
     finish_search,
 )

@@ -12,39 +12,27 @@ that is a proof, so the true correspondence is never lost. Leaves are the surviv
 
 The tree is explored depth first, so memory holds one path and its pending siblings, not
 every live hypothesis; a time or node budget stops the search with the exact list of the
-subtrees left unexplored (each named by the decisions of its root). Every operation on a
-node names the node's overlay (:class:`~._shared.SharedGraph`), so no step can act on
-another hypothesis by mistake.
+subtrees left unexplored (each named by the decisions of its root). Expanding one node is
+:class:`~.explorer.Explorer`'s; this module walks the tree and decides its survivors.
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Hashable
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import portion
-from cuikslam.hypotheses._shared import EMPTY_OVERLAY, Overlay, SharedGraph
-from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
-from cuikslam.hypotheses.local import LocalCheck
-from cuikslam.hypotheses.problem import (
-    Decision,
-    Problem,
-    build_problem,
-    observation_rows,
-    unseen_rows,
-)
+from cuikslam.hypotheses._shared import SharedGraph
+from cuikslam.hypotheses.bisection import refute_by_bisection
+from cuikslam.hypotheses.explorer import Budget, Explorer, Node
+from cuikslam.hypotheses.problem import build_problem
 from cuikslam.log.records import Log
-from cuikslam.narrowing.consistency import (
-    DEFAULT_LEVEL,
-    StrengthenReport,
-    resolve_level,
-    strengthen,
-)
-from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL
+from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
+from cuikslam.narrowing.propagation import DEFAULT_RTOL
 from cuikslam.options import SolveOptions
 from cuikslam.results.solution import Hypothesis, Solution
 from cuikslam.results.summary import describe, summarize, summary_to_json
@@ -53,7 +41,6 @@ __all__ = [
     "DEFAULT_MAX_HYPOTHESES",
     "DEFAULT_STRENGTHEN_DURING",
     "DEFAULT_STRENGTHEN_LIMIT",
-    "SearchStatistics",
     "solve_unknown",
 ]
 
@@ -78,396 +65,12 @@ BISECTION_PARTS_PER_NODE = 4
 """Parts the bisections may narrow per node the search created (at least
 ``BISECTION_MIN_PARTS``): bisection costs about as much as the search itself did."""
 BISECTION_MIN_PARTS = 256
-LEAF_BISECTION_PARTS = 8
-"""Parts a leaf's bisection may narrow when the search reaches it, in logs with negative
-information (a ``sensor`` record): many wrong leaves fall within a few parts, and those
-refuted are never counted as survivors. Without negative information the constraints are
-not disjunctive, narrowing loses little, and bisecting every leaf cost 1.6 to 4 times the
-search on worlds of thousands of consistent survivors."""
 MAINTAIN_EVERY = 1024
 """Node expansions between two looks at the shared graph's housekeeping."""
 MAX_TALLIED = 100_000
 """Survivors whose assignments the correspondence summary holds at most."""
 SHOWN_PREFIXES = 5
 """Unexplored subtrees named in the message of a search stopped by its budget."""
-
-
-@dataclass
-class SearchStatistics:
-    """Counts that tell how the search went."""
-
-    branch_points: int = 0
-    """Nodes expanded: an unlabelled observation decided in one partial hypothesis."""
-    candidates: int = 0
-    """(node, landmark) pairs considered, plus each node's "new landmark" option."""
-    excluded_same_scan: int = 0
-    """Candidates excluded because the same scan already saw that landmark."""
-    gated: int = 0
-    """Candidates rejected by the interval gate, without propagation."""
-    proven_empty: int = 0
-    """Children whose constraints contracted to empty (a proof)."""
-    refuted_by_negative_information: int = 0
-    """Children refuted by UNSEEN constraints (a landmark in view that the robot did not see)."""
-    unseen_constraints: int = 0
-    """UNSEEN constraints added (pose-landmark pairs close enough to matter)."""
-    created: int = 0
-    """Children created (each a consistent-looking partial hypothesis)."""
-    refuted_in_local_frame: int = 0
-    """Children whose window around the decided pose is inconsistent in that pose's frame."""
-    refuted_by_consistency: int = 0
-    """Nodes or survivors of hull consistency refuted by the stronger consistency level."""
-    refuted_by_bisection: int = 0
-    """Leaves (when the search reaches them) and survivors (after it) proven impossible by
-    bisecting their boxes (:mod:`.bisection`); those refuted as leaves never count as
-    survivors."""
-    refuted_by_class_prior: int = 0
-    """Children breaking a class prior of the log: one landmark too many of a class, or two
-    distinct landmarks of a class closer than its separation."""
-    survivors: int = 0
-    """Leaves not refuted: complete hypotheses (all of them, reported or not)."""
-    unexplored_subtrees: int = 0
-    """Subtrees left when a budget stopped the search (0 when complete)."""
-    explored_fraction: float = 0.0
-    """Share of the search tree decided (children weigh equally within their parent)."""
-    peak_frontier: int = 0
-    """Most nodes waiting on the depth-first stack at once."""
-    operator_applications: int = 0
-
-
-@dataclass(frozen=True, slots=True)
-class Node:
-    """A partial hypothesis: the first ``depth`` decisions made."""
-
-    depth: int
-    overlay: Overlay
-    blocks: tuple[int, ...]
-    """Decision that created each anonymous landmark, in order (their landmark numbers
-    follow the named landmarks')."""
-    assigned: tuple | None
-    """Landmark number of each decision as a persistent list ``(number, previous)``, newest
-    first, so a child shares its parent's history."""
-    share: float = 1.0
-    """Fraction of the whole tree under this node (for progress and the budget account)."""
-    level: str = "hull"
-    """The consistency level its boxes are known to reach."""
-
-    def decisions(self) -> list[int]:
-        """Landmark number of every decision made, oldest first."""
-        out = []
-        node = self.assigned
-        while node is not None:
-            out.append(node[0])
-            node = node[1]
-        return out[::-1]
-
-
-@dataclass
-class Budget:
-    """When the search stops before it is complete (None: no limit)."""
-
-    deadline: float | None = None
-    """A :func:`time.perf_counter` value."""
-    max_nodes: int | None = None
-
-    def exhausted(self, nodes: int) -> str | None:
-        """Why the search must stop now, or None."""
-        if self.deadline is not None and time.perf_counter() > self.deadline:
-            return "time budget"
-        if self.max_nodes is not None and nodes >= self.max_nodes:
-            return "node budget"
-        return None
-
-
-class Explorer:
-    """Expands nodes of the search tree of one problem."""
-
-    def __init__(
-        self, problem: Problem, rtol: float, level: str, during: int, local: bool = True
-    ) -> None:
-        self.problem = problem
-        self.stats = SearchStatistics()
-        self.graph = SharedGraph(problem.lo, problem.hi, problem.ranked_vars, rtol, DEFAULT_ROUNDS)
-        self.level = level
-        self.during = during
-        """The children of the first ``during`` decisions get ``lp`` when ambiguous."""
-        self.n_named = len(problem.named)
-        self.deadline: float | None = None
-        """When the stronger level must stop (it then reports the level it reached)."""
-        self.local = (
-            LocalCheck(problem.pose_x, len(problem.lo), rtol, DEFAULT_ROUNDS, problem.sensor_x)
-            if local
-            else None
-        )
-        self._decisions_of: dict[Hashable, list[int]] = {}
-        """Scan (a pose, or a pose and a sensor offset) -> its decisions, in order."""
-        for k, d in enumerate(problem.decisions):
-            self._decisions_of.setdefault(d.scan, []).append(k)
-        self._done_xs, self._done_radii = self._completed_poses()
-        self.leaf_parts = LEAF_BISECTION_PARTS if problem.has_sensor else 0
-        """Parts of the bisection of each leaf (0: leaves are not bisected)."""
-        self._pose_xs = np.array(sorted(problem.pose_x.values()), dtype=np.int64)
-
-    # ---------------------------------------------------------------- precomputed
-    def _completed_poses(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """x and radius variables of the poses whose scans are complete before decision k."""
-        p = self.problem
-        xs, radii = [], []
-        for k in range(len(p.decisions) + 1):
-            poses = p.completed_before(k) if p.has_sensor else []
-            xs.append(np.array([p.pose_x[q] for q in poses], dtype=np.int64))
-            radii.append(np.array([p.radius_var[q] for q in poses], dtype=np.int64))
-        return xs, radii
-
-    # ---------------------------------------------------------------- landmarks
-    def landmark_xs(self, node: Node) -> np.ndarray:
-        """x variable of every landmark of ``node``, by landmark number."""
-        blocks = [self.problem.decisions[k].slot_x for k in node.blocks]
-        return np.concatenate([self.problem.named_x, np.array(blocks, dtype=np.int64)])
-
-    def bisection(self, node: Node) -> Bisection:
-        """A bisection of ``node``'s box (:mod:`.bisection`)."""
-        lo, hi, arrays = self.graph.standalone(node.overlay)
-        return Bisection(lo, hi, arrays, self._pose_xs, self.landmark_xs(node))
-
-    def refuted_leaf(self, node: Node) -> bool:
-        """True when a bisection of ``leaf_parts`` parts proves the leaf ``node`` impossible."""
-        if self.leaf_parts <= 0:
-            return False
-        refuted = refute_by_bisection([self.bisection(node)], self.deadline, self.leaf_parts)[0]
-        self.stats.refuted_by_bisection += refuted
-        return refuted
-
-    def landmark_class(self, node: Node, number: int) -> str:
-        if number < self.n_named:
-            return self.problem.named_class[number]
-        return self.problem.decisions[node.blocks[number - self.n_named]].landmark_class
-
-    def seen_by(self, node: Node, scan: Hashable) -> set[int]:
-        """Landmark numbers the ``scan`` (a pose, or a pose and a sensor offset: see
-        :attr:`Decision.scan`) sees in ``node``: its named observations' landmarks and those
-        of its unlabelled observations decided so far."""
-        seen = set(self.problem.seen_named.get(scan, ()))
-        mine = [j for j in self._decisions_of.get(scan, ()) if j < node.depth]
-        if mine:
-            wanted = set(mine)
-            entry = node.assigned
-            for j in range(node.depth - 1, mine[0] - 1, -1):
-                if j in wanted:
-                    seen.add(entry[0])
-                entry = entry[1]
-        return seen
-
-    # ---------------------------------------------------------------- the tree
-    def root(self) -> Node | None:
-        """The node of no decisions: every shared constraint propagated; None when even that
-        is proven empty (the log is inconsistent whatever the correspondence)."""
-        graph = self.graph
-        ids = graph.intern(self.problem.root_rows)
-        overlay = graph.add_rows(EMPTY_OVERLAY, ids)
-        if overlay is None:
-            return None
-        [overlay] = graph.rebase([overlay])  # the root becomes the base, its rows the base set
-        node = Node(0, overlay, (), None)
-        if self._breaks_class_prior(node):
-            return None
-        if self.problem.has_sensor:
-            node = self._unseen_scans(node, self.problem.complete_at_root())
-        return node
-
-    def children(self, node: Node) -> tuple[list[Node], int]:
-        """The children of ``node`` that are not proven impossible, in the order to explore
-        them, and the number of options considered."""
-        p, graph, stats = self.problem, self.graph, self.stats
-        k = node.depth
-        d = p.decisions[k]
-        stats.branch_points += 1
-        all_xs = self.landmark_xs(node)
-        numbers = [
-            n for n in range(len(all_xs)) if self.landmark_class(node, n) == d.landmark_class
-        ]
-        seen = self.seen_by(node, d.scan)
-        kept = [n for n in numbers if n not in seen]
-        stats.candidates += len(numbers) + 1
-        stats.excluded_same_scan += len(numbers) - len(kept)
-        options = len(kept) + 1
-        xs = all_xs[kept]
-        passed = graph.gate(node.overlay, d.sensor_x, xs, d.bearing_var, d.range_var)
-        stats.gated += int(np.count_nonzero(~passed))
-        order = self._nearest_first(node, d, xs[passed])
-        ids = graph.intern(observation_rows(p, d, xs[passed][order]))
-        out: list[Node] = []
-        for i, number in enumerate(np.array(kept, dtype=np.int64)[passed][order].tolist()):
-            overlay = graph.add_rows(node.overlay, ids[i : i + 1])
-            if overlay is None:
-                stats.proven_empty += 1
-                continue
-            child = self._after_decision(Node(k + 1, overlay, node.blocks, (number, node.assigned)))
-            if child is not None:
-                out.append(child)
-        new: Node | None = Node(
-            k + 1, node.overlay, (*node.blocks, k), (len(all_xs), node.assigned)
-        )
-        prior = p.class_priors.get(d.landmark_class)
-        if prior is not None and prior.at_most is not None and len(numbers) >= prior.at_most:
-            stats.refuted_by_class_prior += 1
-            new = None
-        if new is not None and p.has_sensor and len(self._done_xs[k]):
-            overlay = self._add_unseen(
-                new.overlay, self._done_xs[k], self._done_radii[k], np.array([d.slot_x])
-            )
-            new = None if overlay is None else replace(new, overlay=overlay)
-        if new is not None:
-            new = self._after_decision(new)
-        if new is not None:
-            out.append(new)
-        stats.created += len(out)
-        if len(out) > 1 and k < self.during and self.level != "hull":
-            out = [c for c in (self.strengthen_node(c, "lp") for c in out) if c is not None]
-        share = node.share / options
-        return [replace(c, share=share) for c in out], options
-
-    def _nearest_first(self, node: Node, d: Decision, xs: np.ndarray) -> np.ndarray:
-        """The order in which to explore the candidate landmarks at x ``xs``: nearest first
-        to where the observation puts the landmark (its slot's box), centre to centre.
-
-        Depth-first, the first survivor is then usually found without backtracking (on a
-        long log, a wrong early choice can survive hundreds of decisions in wide boxes).
-        The order changes nothing else: every child is explored.
-        """
-        if len(xs) < 2:
-            return np.arange(len(xs))
-        slot = np.array([d.slot_x, d.slot_x + 1], dtype=np.int64)
-        lo, hi = self.graph.values(node.overlay, np.concatenate([slot, xs, xs + 1]))
-        with np.errstate(invalid="ignore", over="ignore"):
-            centre = np.nan_to_num(0.5 * lo + 0.5 * hi, nan=0.0, posinf=0.0, neginf=0.0)
-        n = len(xs)
-        gap = np.hypot(centre[2 : 2 + n] - centre[0], centre[2 + n :] - centre[1])
-        return np.argsort(gap, kind="stable")
-
-    def _after_decision(self, child: Node) -> Node | None:
-        """The class prior's separation, negative information once the decided observation
-        completes its pose's scan, then the window of its pose narrowed in that pose's
-        frame."""
-        d = self.problem.decisions[child.depth - 1]
-        if self._too_close(child, child.assigned[0]):
-            self.stats.refuted_by_class_prior += 1
-            return None
-        if self.problem.has_sensor and d.completes_scan:
-            child = self._unseen_scans(child, [d.pose])
-        if child is None or self.local is None:
-            return child
-        if self.local.refutes(self.graph, child.overlay, d.pose, d.pose_x):
-            self.stats.refuted_in_local_frame += 1
-            return None
-        return child
-
-    def _breaks_class_prior(self, node: Node) -> bool:
-        """The named landmarks alone break a class prior: too many of a class, two too close,
-        or one outside its region (an empty box)."""
-        p = self.problem
-        for cls, prior in p.class_priors.items():
-            if prior.at_most is not None and p.named_class.count(cls) > prior.at_most:
-                self.stats.refuted_by_class_prior += 1
-                return True
-        lo, hi = self.graph.values(node.overlay, np.concatenate([p.named_x, p.named_x + 1]))
-        if np.any(lo > hi) or any(self._too_close(node, n) for n in range(self.n_named)):
-            self.stats.refuted_by_class_prior += 1
-            return True
-        return False
-
-    def _too_close(self, node: Node, number: int) -> bool:
-        """True when landmark ``number`` of ``node`` is proven closer to another landmark of
-        its class than the class prior's ``min_separation``: the farthest points of their
-        boxes are nearer than that (compared with a relative margin far above rounding)."""
-        cls = self.landmark_class(node, number)
-        prior = self.problem.class_priors.get(cls)
-        if prior is None or prior.min_separation is None:
-            return False
-        xs = self.landmark_xs(node)
-        others = [n for n in range(len(xs)) if n != number and self.landmark_class(node, n) == cls]
-        if not others:
-            return False
-        mine = np.array([xs[number], xs[number] + 1], dtype=np.int64)
-        cols = np.array([[xs[n], xs[n] + 1] for n in others], dtype=np.int64).ravel()
-        a_lo, a_hi = self.graph.values(node.overlay, mine)
-        o_lo, o_hi = self.graph.values(node.overlay, cols)
-        o_lo, o_hi = o_lo.reshape(-1, 2), o_hi.reshape(-1, 2)
-        with np.errstate(invalid="ignore", over="ignore"):
-            span = np.maximum(a_hi - o_lo, o_hi - a_lo)  # farthest gap per axis, >= 0
-            far2 = span[:, 0] * span[:, 0] + span[:, 1] * span[:, 1]
-        d = prior.min_separation
-        return bool(np.any(far2 * (1 + 1e-9) < d * d * (1 - 1e-9)))
-
-    def _unseen_scans(self, node: Node, poses: list[int]) -> Node | None:
-        """Add UNSEEN constraints between each of ``poses`` (whose scans ``node`` has fully
-        decided) and every landmark it did not see; None when that proves ``node`` empty."""
-        if not poses:
-            return node
-        p = self.problem
-        landmark_xs = self.landmark_xs(node)
-        seen = np.zeros((len(poses), len(landmark_xs)), dtype=np.bool_)
-        for i, pose in enumerate(poses):
-            for n in self.seen_by(node, pose):
-                seen[i, n] = True
-        pose_xs = np.array([p.pose_x[q] for q in poses], dtype=np.int64)
-        radii = np.array([p.radius_var[q] for q in poses], dtype=np.int64)
-        overlay = self._add_unseen(node.overlay, pose_xs, radii, landmark_xs, seen)
-        return None if overlay is None else replace(node, overlay=overlay)
-
-    def _add_unseen(
-        self,
-        overlay: Overlay,
-        pose_xs: np.ndarray,
-        radius_vars: np.ndarray,
-        landmark_xs: np.ndarray,
-        seen: np.ndarray | None = None,
-    ) -> Overlay | None:
-        """The branch of ``overlay`` plus UNSEEN constraints between the poses and the
-        landmarks they did not see (``seen``: none by default) that are within reach."""
-        if seen is None:
-            seen = np.zeros((len(pose_xs), len(landmark_xs)), dtype=np.bool_)
-        graph = self.graph
-        pairs = graph.pairs_within_reach(overlay, pose_xs, radius_vars, landmark_xs, seen)
-        if len(pairs) == 0:
-            return overlay
-        rows = unseen_rows(
-            self.problem, pose_xs[pairs[:, 0]], radius_vars[pairs[:, 0]], landmark_xs[pairs[:, 1]]
-        )
-        self.stats.unseen_constraints += len(rows)
-        out = graph.add_rows(overlay, graph.intern(rows))
-        if out is None:
-            self.stats.refuted_by_negative_information += 1
-        return out
-
-    # ---------------------------------------------------------------- stronger level
-    def strengthen_node(self, node: Node, level: str) -> Node | None:
-        """``node`` narrowed to ``level``; None when that proves it empty."""
-        if level == "hull":
-            return node
-        graph = self.graph
-        lo, hi, arrays = graph.standalone(node.overlay)
-        report = StrengthenReport()
-        result = strengthen(
-            arrays, lo, hi, level, graph.rtol, DEFAULT_ROUNDS, deadline=self.deadline, report=report
-        )
-        self.stats.operator_applications += result.applications
-        if result.is_empty:
-            self.stats.refuted_by_consistency += 1
-            return None
-        overlay = graph.overlay_of(lo, hi, node.overlay.rows)
-        return replace(node, overlay=overlay, level=report.level)
-
-    # ---------------------------------------------------------------- replay
-    def replay(self, prefix: list[int]) -> Node | None:
-        """The node reached by the decisions ``prefix`` (landmark numbers); None when a step
-        is proven impossible or not a candidate."""
-        node = self.root()
-        for number in prefix:
-            if node is None:
-                return None
-            kids, _ = self.children(node)
-            node = next((c for c in kids if c.assigned[0] == number), None)
-        return node
 
 
 @dataclass
@@ -836,9 +439,7 @@ def finish_search(
         if tuple(node.decisions()) not in alive:  # refuted by the stronger level
             tally.discard(node)  # (or by bisection)
             stats.survivors -= 1
-    hypotheses = sorted(
-        (_hypothesis(explorer, n) for n in survivors), key=lambda h: h.rank_key
-    )
+    hypotheses = sorted((_hypothesis(explorer, n) for n in survivors), key=lambda h: h.rank_key)
     if stats.survivors > len(found):
         messages.append(
             f"{stats.survivors} hypotheses survived; the {len(hypotheses)} best-ranked are "

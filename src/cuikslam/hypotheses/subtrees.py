@@ -19,17 +19,9 @@ from typing import Any
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
+from cuikslam.hypotheses.explorer import Budget, Explorer, Node, SearchStatistics
 from cuikslam.hypotheses.problem import Problem, build_problem
-from cuikslam.hypotheses.search import (
-    MAX_TALLIED,
-    Budget,
-    Explorer,
-    Node,
-    SearchStatistics,
-    _rank_key,
-    _Tally,
-    explore,
-)
+from cuikslam.hypotheses.search import MAX_TALLIED, _rank_key, _Tally, explore
 from cuikslam.log.records import Log
 
 __all__ = [
@@ -107,7 +99,7 @@ class SubtreeResult:
     hull_lo: np.ndarray
     hull_hi: np.ndarray
     counts: dict[str, int]
-    """Fields of :class:`~.search.SearchStatistics` that add up."""
+    """Fields of :class:`~.explorer.SearchStatistics` that add up."""
     peak_frontier: int
     done: float
     """Share of the whole tree this task decided."""
