@@ -52,7 +52,7 @@ BEST_ATTEMPTS = 10
 """Beyond ``strengthen_limit`` survivors, the best-ranked are tried until one is not refuted."""
 DEFAULT_STRENGTHEN_DURING = SolveOptions.strengthen_during
 """Decisions (the first ones) whose children get ``lp`` during the search when ambiguous."""
-SEARCH_SHARE = 0.8
+SEARCH_SHARE = 0.7
 """Share of the time budget the search itself may use: the rest is left to deciding its
 survivors (bisection, the stronger level), even when the search is cut short."""
 BISECTION_SHARE = 0.5
