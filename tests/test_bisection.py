@@ -104,12 +104,19 @@ def test_a_box_with_nothing_to_split_ends_the_bisection(log: Log, truth: Truth) 
     assert np.array_equal(lo, whole.lo) and np.array_equal(hi, whole.hi)
 
 
-def test_the_total_budget_is_shared_and_kept(log: Log) -> None:
-    bisections = _bisections(log, [[], [], []])
-    refute_by_bisection(bisections, None, max_parts=1000, max_total_parts=50)
-    total = sum(b.narrowed_parts for b in bisections)
-    assert 50 <= total <= 51  # a split narrows two halves
-    assert all(b.narrowed_parts >= 8 for b in bisections)  # round-robin: each got a turn
+def test_each_bisection_gets_its_share_whatever_the_others_do(log: Log) -> None:
+    """The total budget is split evenly (16 parts each of 50 among 3, give or take one
+    split), so a bisection run with others proves what it proves alone: the survivors'
+    bisections can be split among workers with the same result."""
+    together = _bisections(log, [[], [], []])
+    refute_by_bisection(together, None, max_parts=1000, max_total_parts=50)
+    assert all(16 <= b.narrowed_parts <= 17 for b in together)
+    (alone,) = _bisections(log, [[]])
+    refute_by_bisection([alone], None, max_parts=1000, max_total_parts=16)
+    assert alone.narrowed_parts == together[0].narrowed_parts
+    assert len(alone.parts) == len(together[0].parts)
+    for (lo_a, hi_a), (lo_t, hi_t) in zip(alone.parts, together[0].parts, strict=True):
+        assert np.array_equal(lo_a, lo_t) and np.array_equal(hi_a, hi_t)
 
 
 def test_a_deadline_in_the_past_stops_before_any_work(log: Log) -> None:

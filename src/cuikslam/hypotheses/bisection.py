@@ -148,22 +148,28 @@ def refute_by_bisection(
 ) -> list[bool]:
     """Which of ``bisections`` end proven impossible, sharing one budget round-robin.
 
-    Each round gives every open bisection its quota of parts (8, then twice as many each
-    round), so that the cheap refutations (a part or two) come first; a bisection stops
-    when refuted, after ``max_parts`` parts, or at ``deadline``; all stop when together
-    they have narrowed ``max_total_parts`` parts (give or take one split).
+    Each bisection may narrow ``max_parts`` parts, and no more than its even share of
+    ``max_total_parts``; so, without a deadline, what each one proves does not depend on
+    the others, and the bisections may be split among workers with the same result
+    (:func:`allotment` gives the share). Each round gives every open bisection its quota
+    (8 parts, then twice as many each round), so that the cheap refutations (a part or two)
+    come first when the ``deadline`` cuts the rounds short.
     """
+    most = allotment(len(bisections), max_parts, max_total_parts)
     quota = FIRST_ROUND_PARTS
-    left = math.inf if max_total_parts is None else max_total_parts
-    while left > 0 and (deadline is None or time.perf_counter() < deadline):
-        open_ = [b for b in bisections if not b.exhausted and b.narrowed_parts < max_parts]
+    while deadline is None or time.perf_counter() < deadline:
+        open_ = [b for b in bisections if not b.exhausted and b.narrowed_parts < most]
         if not open_:
             break
         for b in open_:
-            before = b.narrowed_parts
-            b.run(deadline, int(min(quota, max_parts - before, left)))
-            left -= b.narrowed_parts - before
-            if left <= 0:
-                break
+            b.run(deadline, min(quota, most - b.narrowed_parts))
         quota *= 2
     return [b.refuted for b in bisections]
+
+
+def allotment(n: int, max_parts: int, max_total_parts: int | None) -> int:
+    """Parts each of ``n`` bisections may narrow: ``max_parts``, and at most an even share
+    of ``max_total_parts``."""
+    if max_total_parts is None or n == 0:
+        return max_parts
+    return min(max_parts, max_total_parts // n)

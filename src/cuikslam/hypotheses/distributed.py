@@ -28,12 +28,15 @@ from typing import Any
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
+from cuikslam.budget import portion
+from cuikslam.hypotheses.bisection import Bisection, allotment, refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer, Node, SearchStatistics
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.search import (
     DEFAULT_MAX_HYPOTHESES,
     DEFAULT_STRENGTHEN_DURING,
     DEFAULT_STRENGTHEN_LIMIT,
+    SEARCH_SHARE,
     _Tally,
     finish_search,
 )
@@ -57,7 +60,7 @@ __all__ = [
     "search_distributed",
 ]
 
-DEFAULT_QUANTUM_S = 1.0
+DEFAULT_QUANTUM_S = 0.5
 """CPU seconds a task explores (after its replay) before it returns its pending subtrees
 (to be split again): CPU, not wall, so that a loaded machine does not shorten the tasks
 and multiply the replays."""
@@ -68,6 +71,44 @@ MAX_BATCH = 8
 
 
 # ------------------------------------------------------------------------- the client
+def _refute_on_cluster(
+    client: Any,
+    slots: int,
+    bisections: list[Bisection],
+    deadline: float | None,
+    max_parts: int,
+    max_total_parts: int,
+) -> list[bool]:
+    """:func:`~.bisection.refute_by_bisection` with the bisections dealt out to ``slots``
+    tasks: each keeps its share of the budget (:func:`~.bisection.allotment`), so the
+    result is the one process's. The deadline travels as seconds left (clocks of other
+    machines differ)."""
+    if len(bisections) < 2 or slots < 2:
+        return refute_by_bisection(bisections, deadline, max_parts, max_total_parts)
+    each = allotment(len(bisections), max_parts, max_total_parts)
+    seconds = None if deadline is None else deadline - time.perf_counter()
+    chunks = [list(range(i, len(bisections), slots)) for i in range(slots)]
+    futures = [
+        client.submit(
+            _refute_task, [bisections[k] for k in chunk], seconds, each, pure=False
+        )
+        for chunk in chunks
+        if chunk
+    ]  # fmt: skip
+    refuted = [False] * len(bisections)
+    for chunk, flags in zip([c for c in chunks if c], client.gather(futures), strict=True):
+        for k, flag in zip(chunk, flags, strict=True):
+            refuted[k] = flag
+    return refuted
+
+
+def _refute_task(bisections: list[Bisection], seconds: float | None, each: int) -> list[bool]:
+    """A worker's share of the survivors' bisections."""
+    ensure_round_to_nearest()
+    deadline = None if seconds is None else time.perf_counter() + seconds
+    return refute_by_bisection(bisections, deadline, each, each * len(bisections))
+
+
 def search_distributed(
     log: Log,
     *,
@@ -119,18 +160,19 @@ def search_distributed(
     root = explorer.root()
     tally = _Tally(explorer, on_survivor)
     keep = max(1, max_hypotheses)
-    run = _Run(explorer, deadline, max_nodes, keep)
+    searching = portion(deadline, SEARCH_SHARE)  # the rest decides its survivors
+    run = _Run(explorer, searching, max_nodes, keep)
     found: list[Node] = []
     split_s = merge_s = 0.0
+    slots = max(1, sum(client.nthreads().values()))
     if root is not None:
-        slots = max(1, sum(client.nthreads().values()))
         prefixes = run.split(root, SPLIT_PER_SLOT * slots)
         split_s = time.perf_counter() - start
         options = TaskOptions(
             key=uuid.uuid4().hex, consistency=consistency, rtol=rtol,
             strengthen_during=strengthen_during, local_frame=local_frame, keep=keep,
             all_survivors=on_survivor is not None, quantum_s=quantum_s,
-            deadline=None if deadline is None else time.time() + (deadline - start),
+            deadline=None if searching is None else time.time() + (searching - start),
         )  # fmt: skip
         results = run.on_cluster(
             client, log, prefixes, options, slots, quantum_nodes, progress, on_result
@@ -146,6 +188,7 @@ def search_distributed(
     solution = finish_search(
         log, explorer, tally, found, run.unexplored(), run.stop_reason(), consistency,
         strengthen_limit, progress, start, messages,
+        lambda *job: _refute_on_cluster(client, slots, *job),
     )  # fmt: skip
     solution.statistics.update(
         tasks=run.tasks, resubmitted=run.resubmitted, lost_on_replay=run.lost_on_replay,

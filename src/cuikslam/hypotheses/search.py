@@ -27,7 +27,7 @@ import numpy as np
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import portion
 from cuikslam.hypotheses._shared import SharedGraph
-from cuikslam.hypotheses.bisection import refute_by_bisection
+from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
 from cuikslam.hypotheses.explorer import Budget, Explorer, Node
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.log.records import Log
@@ -264,19 +264,26 @@ def _hypothesis(explorer: Explorer, node: Node) -> Hypothesis:
     )
 
 
-def _bisect_survivors(explorer: Explorer, survivors: list[Node], limit: int) -> list[Node]:
+Refute = Callable[[list[Bisection], float | None, int, int], list[bool]]
+"""Runs bisections (a list, a deadline, parts per bisection, parts in all) and says which
+are refuted: :func:`~.bisection.refute_by_bisection`, or a cluster's map of it."""
+
+
+def _bisect_survivors(
+    explorer: Explorer, survivors: list[Node], limit: int, refute: Refute = refute_by_bisection
+) -> list[Node]:
     """The survivors that bisection does not prove impossible (:mod:`.bisection`), when
     there are 2 to ``limit`` of them; it may use ``BISECTION_SHARE`` of the time left to
     the deadline and ``BISECTION_PARTS`` parts per survivor, in all
     ``BISECTION_PARTS_PER_NODE`` per node created by the search, between
-    ``BISECTION_MIN_PARTS`` and ``BISECTION_TOTAL_PARTS``."""
+    ``BISECTION_MIN_PARTS`` and ``BISECTION_TOTAL_PARTS``. ``refute`` runs them."""
     if len(survivors) < 2 or len(survivors) > limit:
         return survivors  # a lone survivor is left to the witness search to prove
     deadline = portion(explorer.deadline, BISECTION_SHARE)
     bisections = [explorer.bisection(node) for node in survivors]
     total = BISECTION_PARTS_PER_NODE * explorer.stats.created
     total = min(BISECTION_TOTAL_PARTS, max(BISECTION_MIN_PARTS, total))
-    refuted = refute_by_bisection(bisections, deadline, BISECTION_PARTS, total)
+    refuted = refute(bisections, deadline, BISECTION_PARTS, total)
     explorer.stats.refuted_by_bisection += sum(refuted)
     return [n for n, r in zip(survivors, refuted, strict=True) if not r]
 
@@ -402,13 +409,16 @@ def finish_search(
     progress: Callable[[int, int], None] | None,
     start: float,
     messages: list[str],
+    refute: Refute = refute_by_bisection,
 ) -> Solution:
-    """What follows the search, wherever it ran: the survivors' stronger level, the
-    reported hypotheses, the summary, the statistics and the account of a budget stop.
+    """What follows the search, wherever it ran: the survivors' bisection and stronger
+    level, the reported hypotheses, the summary, the statistics and the account of a
+    budget stop.
 
     ``found`` are the best-ranked survivors (nodes of ``explorer``), ``explorer.stats``
     counts the whole search, ``unexplored`` names the subtrees left by a budget stop
-    (``stop_reason``), the next one to explore last.
+    (``stop_reason``), the next one to explore last; ``refute`` runs the survivors'
+    bisections (on a cluster, their share on each worker).
     """
     problem = explorer.problem
     stats = explorer.stats
@@ -422,7 +432,7 @@ def finish_search(
             f"first: {shown}); the result is INCOMPLETE: the true hypothesis may be in them"
         )
     as_leaves = stats.refuted_by_bisection
-    survivors = _bisect_survivors(explorer, found, strengthen_limit)
+    survivors = _bisect_survivors(explorer, found, strengthen_limit, refute)
     if stats.refuted_by_bisection:
         after = stats.refuted_by_bisection - as_leaves
         messages.append(
