@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cuikslam.graph.variables import length_bounds
 from cuikslam.hypotheses.witness._numeric import (
     cos_sin,
     finite,
@@ -248,7 +249,7 @@ class HypothesisModel(Starts):
                     turn = new_param(f"turn {r.source}->{r.target}", r.turn)
                     dist = new_param(
                         f"distance {r.source}->{r.target}",
-                        (max(0.0, r.distance[0]), r.distance[1]),
+                        length_bounds(r.distance),
                     )
                     if placed[s]:
                         self.steps.append(_Step(s, t, turn, dist, True))
@@ -295,7 +296,7 @@ class HypothesisModel(Starts):
             [self._pose_index[r.target] for r in closures], dtype=np.int64
         )
         closure_turn = [r.turn for r in closures]
-        closure_distance = [(max(0.0, r.distance[0]), r.distance[1]) for r in closures]
+        closure_distance = [length_bounds(r.distance) for r in closures]
         self.equality_rows = np.flatnonzero(self.closure_source != self.closure_target)
 
         parts = [
