@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from fractions import Fraction
 
+import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
@@ -17,6 +18,7 @@ from cuikslam.interval.angles import (
     TWO_PI_LO,
     angle_excess,
     angle_in,
+    angles_inside,
     out_of_view_arc,
     wrap_angle,
 )
@@ -54,6 +56,27 @@ def test_angle_in_agrees_with_the_exact_reference(lo: float, width: float, angle
 )
 def test_angle_in_decides_at_the_float_of_two_pi(lo, hi, angle, inside) -> None:
     assert angle_in(lo, hi, angle) is inside
+
+
+@settings(deadline=None)  # the first example loads a compiled kernel
+@given(
+    lo=st.one_of(finite, near_turns),
+    width=st.floats(0, 8),
+    x0=st.one_of(finite, near_turns),
+    x_width=st.floats(0, 8),
+)
+def test_angles_inside_proves_every_angle_of_the_interval_inside(
+    lo: float, width: float, x0: float, x_width: float
+) -> None:
+    hi, x1 = lo + width, x0 + x_width
+    assume(math.isfinite(hi) and math.isfinite(x1))
+    inside = bool(angles_inside(np.array([[x0, x1]]), lo, hi)[0])
+    if inside and width < 2 * math.pi:
+        # one shift puts the whole interval in: both ends inside, no wider than [lo, hi]
+        assert angle_inside(lo, hi, mpf(x0)) and angle_inside(lo, hi, mpf(x1))
+        assert x1 - x0 <= hi - lo
+    point = (lo + hi) / 2  # inside [lo, hi] itself: found
+    assert angles_inside(np.array([[point, point]]), lo, hi)[0]
 
 
 @given(value=finite, lo=finite, width=st.floats(0, 6))

@@ -6,6 +6,8 @@ what the rest of the library asks of an angle in plain Python, in one place:
 - the float enclosures of π, π/2 and 2π every kernel uses (``PI_LO < π < PI_HI``);
 - :func:`angle_in`: whether a true angle, modulo an exact 2π, lies in a float interval
   (the truth checks of results and benchmarks);
+- :func:`angles_inside`: whether angle *intervals* lie, modulo 2π, inside float intervals,
+  rigorously (a True is a proof: the verification of witnesses);
 - :func:`angle_excess`: how far an angle lies outside an interval, modulo 2π (a
   diagnostic, in floats);
 - :func:`wrap_angle`: a float angle's representative in (-π, π] (simulation, data);
@@ -41,6 +43,7 @@ __all__ = [
     "TWO_PI_LO",
     "angle_excess",
     "angle_in",
+    "angles_inside",
     "out_of_view_arc",
     "wrap_angle",
 ]
@@ -121,6 +124,49 @@ def angle_in(lo: float, hi: float, angle: Fraction | float | int) -> bool:
         if flo <= low and high <= fhi:
             return True
     return False
+
+
+def angles_inside(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Where the angle interval ``x`` lies inside ``[lo, hi] + 2πk`` for one integer k.
+
+    Parameters
+    ----------
+    x : ndarray, shape (..., 2)
+        Angle intervals (unwrapped).
+    lo, hi : ndarray or float
+        The intervals to lie in, broadcast to ``x.shape[:-1]`` (any angle when ``hi - lo``
+        may reach 2π).
+
+    Returns
+    -------
+    ndarray of bool
+        True where ``x`` is proven inside (the shift ``2πk`` is an outward-rounded
+        enclosure, so a True is rigorous); False where it may not be, and for NaN or empty
+        ``x``.
+
+    Examples
+    --------
+    >>> angles_inside(np.array([[6.0, 6.5], [0.5, 0.7], [0.5, 0.6]]), -0.5, 0.6).tolist()
+    [True, False, True]
+    """
+    from cuikslam.interval import ops as ia  # compiled: loaded only for this
+
+    x = np.asarray(x, dtype=float)
+    lo = np.broadcast_to(np.asarray(lo, dtype=float), x.shape[:-1])
+    hi = np.broadcast_to(np.asarray(hi, dtype=float), x.shape[:-1])
+    width = ia.sub(ia.interval(hi), ia.interval(lo))[..., 0]
+    any_angle = width >= TWO_PI_HI
+    with np.errstate(invalid="ignore", over="ignore"):
+        k = np.round(((lo + hi) / 2.0 - (x[..., 0] + x[..., 1]) / 2.0) / (2 * math.pi))
+    k = np.where(np.isfinite(k), k, 0.0)
+    two_pi = ia.interval(TWO_PI_LO, TWO_PI_HI)
+    ok = np.zeros(x.shape[:-1], dtype=bool)
+    for step in (0.0, -1.0, 1.0):
+        shifted = ia.add(x, ia.mul(ia.interval(k + step), two_pi))
+        ok |= (
+            (shifted[..., 0] >= lo) & (shifted[..., 1] <= hi) & (shifted[..., 0] <= shifted[..., 1])
+        )
+    return (ok | any_angle) & (x[..., 0] <= x[..., 1])
 
 
 def angle_excess(value: float, lo: float, hi: float) -> float:

@@ -33,6 +33,7 @@ import numpy as np
 from cuikslam import interval as ia
 from cuikslam.hypotheses.witness.model import HypothesisModel, WitnessPoint
 from cuikslam.interval._rounding import TWO_PI_HI, TWO_PI_LO
+from cuikslam.interval.angles import angles_inside
 from cuikslam.log.records import Log
 
 _WINDOW = 3.5
@@ -46,26 +47,6 @@ _TWO_PI = ia.interval(TWO_PI_LO, TWO_PI_HI)
 def _inside(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     """True where the interval ``x`` lies inside ``[lo, hi]`` (False for NaN or empty)."""
     return (x[..., 0] >= lo) & (x[..., 1] <= hi) & (x[..., 0] <= x[..., 1])
-
-
-def _inside_mod(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """True where the angle interval ``x`` lies inside ``[lo, hi] + 2 pi k`` for one integer k.
-
-    The shift ``2 pi k`` is an outward-rounded enclosure, so a True is rigorous.
-    """
-    x = np.asarray(x, dtype=float)
-    lo = np.broadcast_to(np.asarray(lo, dtype=float), x.shape[:-1])
-    hi = np.broadcast_to(np.asarray(hi, dtype=float), x.shape[:-1])
-    width = ia.sub(ia.interval(hi), ia.interval(lo))[..., 0]
-    any_angle = width >= TWO_PI_HI
-    with np.errstate(invalid="ignore", over="ignore"):
-        k = np.round(((lo + hi) / 2.0 - (x[..., 0] + x[..., 1]) / 2.0) / (2 * math.pi))
-    k = np.where(np.isfinite(k), k, 0.0)
-    ok = np.zeros(x.shape[:-1], dtype=bool)
-    for step in (0.0, -1.0, 1.0):
-        shifted = ia.add(x, ia.mul(ia.interval(k + step), _TWO_PI))
-        ok |= _inside(shifted, lo, hi)
-    return (ok | any_angle) & (x[..., 0] <= x[..., 1])
 
 
 def _interval_world(model: HypothesisModel, box: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -145,7 +126,7 @@ def _checks_hold(model: HypothesisModel, box: np.ndarray) -> bool:
         raise AssertionError("check layout mismatch")
     ang = model.check_angular
     ok_plain = _inside(values[~ang], lo[~ang], hi[~ang])
-    ok_ang = _inside_mod(values[ang], lo[ang], hi[ang])
+    ok_ang = angles_inside(values[ang], lo[ang], hi[ang])
     if not (np.all(ok_plain) and np.all(ok_ang)):
         return False
     return _sensor_holds(model, P, L) and _class_priors_hold(model, L)
@@ -194,10 +175,10 @@ def _sensor_holds(model: HypothesisModel, P: np.ndarray, L: np.ndarray) -> bool:
         half = sensor.fov / 2.0
         theta = np.broadcast_to(P[:, None, 2], (n, m, 2))
         bearing = ia.sub(_angle_enclosure(dy, dx), theta)
-        in_view = _inside_mod(bearing, -half, half)
+        in_view = angles_inside(bearing, -half, half)
         beyond = float(np.nextafter(half, math.inf))
         before = float(np.nextafter(ia.sub(_TWO_PI, ia.interval(half))[0], -math.inf))
-        out_view = _inside_mod(bearing, beyond, before)
+        out_view = angles_inside(bearing, beyond, before)
     visible = in_range & in_view
     hidden = out_range | out_view
     if not np.all(visible | hidden):
