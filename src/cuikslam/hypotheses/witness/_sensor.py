@@ -16,7 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cuikslam.hypotheses.witness._numeric import BIG
+from cuikslam.hypotheses.witness._numeric import BIG, wrap_near
+from cuikslam.interval.angles import out_of_view_arc
 from cuikslam.log.records import SensorModel
 
 SENSOR_MARGIN = 1e-6
@@ -76,10 +77,10 @@ def sensor_terms(
     dx = L[None, :, 0] - P[:, None, 0]
     dy = L[None, :, 1] - P[:, None, 1]
     d, d_safe, r2 = distance(dx, dy)
-    beta = np.remainder(np.arctan2(dy, dx) - P[:, None, 2] + np.pi, 2 * np.pi) - np.pi
+    beta = wrap_near(np.arctan2(dy, dx) - P[:, None, 2], 0.0)  # in [-pi, pi)
     delta = SENSOR_MARGIN
     inf = np.full((n, m), np.inf)
-    all_round = sensor.fov >= 2 * math.pi
+    all_round = out_of_view_arc(sensor.fov) is None
     half = sensor.fov / 2.0
     # violations (> 0: violated) of "in view" and "out of view" clauses, with their kinds
     in_range = (d - (sensor.max_range - delta)) / length

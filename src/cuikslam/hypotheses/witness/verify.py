@@ -25,15 +25,13 @@ proposes points.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
 
 from cuikslam import interval as ia
 from cuikslam.hypotheses.witness.model import HypothesisModel, WitnessPoint
-from cuikslam.interval._rounding import TWO_PI_HI, TWO_PI_LO
-from cuikslam.interval.angles import angles_inside
+from cuikslam.interval.angles import angles_inside, out_of_view_arc
 from cuikslam.log.records import Log
 
 _WINDOW = 3.5
@@ -41,7 +39,6 @@ _WINDOW = 3.5
 at least one representative of every angle."""
 _PIVOT_STEPS = (1e-9, 1e-7, 1e-5, 1e-3)
 """Half-widths tried for the pivots of the Poincaré–Miranda box."""
-_TWO_PI = ia.interval(TWO_PI_LO, TWO_PI_HI)
 
 
 def _inside(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -168,7 +165,8 @@ def _sensor_holds(model: HypothesisModel, P: np.ndarray, L: np.ndarray) -> bool:
     dist = ia.sqrt(ia.add(ia.sqr(dx), ia.sqr(dy)))
     in_range = dist[..., 1] <= sensor.max_range
     out_range = dist[..., 0] > sensor.max_range
-    if sensor.fov >= 2 * math.pi:
+    unseen = out_of_view_arc(sensor.fov, inner=True)  # a bearing in it is proven unseen
+    if unseen is None:
         in_view = np.ones((n, m), dtype=bool)
         out_view = np.zeros((n, m), dtype=bool)
     else:
@@ -176,9 +174,7 @@ def _sensor_holds(model: HypothesisModel, P: np.ndarray, L: np.ndarray) -> bool:
         theta = np.broadcast_to(P[:, None, 2], (n, m, 2))
         bearing = ia.sub(_angle_enclosure(dy, dx), theta)
         in_view = angles_inside(bearing, -half, half)
-        beyond = float(np.nextafter(half, math.inf))
-        before = float(np.nextafter(ia.sub(_TWO_PI, ia.interval(half))[0], -math.inf))
-        out_view = angles_inside(bearing, beyond, before)
+        out_view = angles_inside(bearing, *unseen)
     visible = in_range & in_view
     hidden = out_range | out_view
     if not np.all(visible | hidden):
