@@ -15,15 +15,16 @@ The stages, one module each:
 * :mod:`.verify`: :func:`verify_witness`, the rigorous decision: interval forward
   kinematics from a parameter point, and a Poincaré–Miranda box around it when loop
   closures make equalities;
-* :mod:`.find`: :func:`find_witness`, the local search for a point that verifies, and
-  :func:`certify`, which runs it on every hypothesis of a
-  :class:`~cuikslam.results.Solution`;
+* :mod:`.find`: :func:`find_witness`, the local search for a point that verifies;
+* :mod:`.certification`: :func:`certify`, which runs it on every hypothesis of a
+  :class:`~cuikslam.results.Solution`, sharing one budget;
 * :mod:`.hull`: :func:`inner_hull`, the same machinery used to measure the exact solution
   set from inside (every point it keeps is verified), to judge how tight the narrowed
   boxes are.
 """
 
-from cuikslam.hypotheses.witness.find import certify, find_witness
+from cuikslam.hypotheses.witness.certification import certify
+from cuikslam.hypotheses.witness.find import find_witness
 from cuikslam.hypotheses.witness.hull import InnerHull, inner_hull
 from cuikslam.hypotheses.witness.model import (
     AIM_FRACTION,

@@ -2,7 +2,7 @@
 
 :func:`find_witness` minimises how far each check falls short of lying a little inside its
 interval, from a few starting points, and keeps the first point that :mod:`.verify` proves.
-:func:`certify` runs that search on every hypothesis of a
+:func:`~.certification.certify` runs that search on every hypothesis of a
 :class:`~cuikslam.results.Solution` and marks the proven ones.
 
 The search has a budget: a deadline (checked at every evaluation of the residuals, so it
@@ -14,7 +14,6 @@ thread (:func:`cuikslam.budget.blas_single_thread`): its matrices are tiny.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -32,7 +31,6 @@ from cuikslam.hypotheses.witness.model import (
 )
 from cuikslam.hypotheses.witness.verify import verified_box
 from cuikslam.log.records import Log
-from cuikslam.results.solution import NOT_REFUTED, PROVEN, Solution
 
 _HOPELESS = 0.5
 """A hinge residual (in half-widths) beyond which aiming closer to the bounds is not tried."""
@@ -236,13 +234,14 @@ def _solve_margins(
     return best, shortfall(best), box
 
 
-class _Search:
-    """One hypothesis' witness search, resumable so that :func:`certify` can share its
-    budget round-robin: the boxes' centres first, then the interval midpoints, then random
-    points of the parameter intervals. The first two start with the least-squares estimate
-    of the centre; the random ones go straight to the margins, since the centre estimate
-    would pull them all back to one basin (a thin solution set far from the box centres,
-    e.g. a new landmark beside a look-alike, is found only from a varied start)."""
+class WitnessSearch:
+    """One hypothesis' witness search, resumable so that :func:`~.certification.certify`
+    can share its budget round-robin: the boxes' centres first, then the interval
+    midpoints, then random points of the parameter intervals. The first two start with the
+    least-squares estimate of the centre; the random ones go straight to the margins, since
+    the centre estimate would pull them all back to one basin (a thin solution set far from
+    the box centres, e.g. a new landmark beside a look-alike, is found only from a varied
+    start)."""
 
     def __init__(
         self,
@@ -358,7 +357,7 @@ def find_point(
         (point, verified parameter box), or (unverified point, None), or (None, None).
     """
     stats = statistics if statistics is not None else WitnessStatistics()
-    search = _Search(model, poses_box, landmarks_box, seed, deadline, max_evaluations, stats)
+    search = WitnessSearch(model, poses_box, landmarks_box, seed, deadline, max_evaluations, stats)
     search.run(2 + restarts)
     if search.point is not None:
         return search.point, search.box
@@ -392,119 +391,3 @@ def find_witness(
     model = HypothesisModel(log, assignment, use_sensor=use_sensor)
     point, _ = find_point(model, poses_box, landmarks_box, seed, restarts, deadline=deadline)
     return point
-
-
-def certify(
-    log: Log,
-    solution: Solution,
-    *,
-    seed: int = 0,
-    restarts: int | None = None,
-    max_hypotheses: int | None = None,
-    use_sensor: bool = True,
-    deadline: float | None = None,
-    max_evaluations: int = MAX_EVALUATIONS,
-    max_total_evaluations: int = MAX_TOTAL_EVALUATIONS,
-) -> WitnessStatistics:
-    """Mark every hypothesis of ``solution`` whose consistency is proven.
-
-    For each hypothesis (the first ``max_hypotheses`` when given), the search of
-    :func:`find_witness` (started from its boxes, then midpoints, then random points) and
-    :func:`verify_witness`; on success ``status`` becomes ``PROVEN`` and ``witness`` holds
-    ``poses_xyt`` (rows in the hypothesis' ``pose_ids`` order) and ``landmarks_xy`` (rows in
-    its ``landmark_ids`` order); otherwise they become (or stay) ``NOT_REFUTED`` without a
-    witness. The decided hypotheses are then ranked again, proven ones first
-    (:attr:`~cuikslam.results.Hypothesis.rank_key`); those beyond ``max_hypotheses`` are
-    untouched.
-
-    The hypotheses share the budget round-robin: every one gets its first two starts (most
-    consistent hypotheses are proven by the first), then the unproven ones get random
-    starts in growing rounds, until each is proven, has used ``max_evaluations`` residual
-    evaluations (or ``2 + restarts`` starts, when given), all of them together have used
-    ``max_total_evaluations`` (checked between rounds), or ``deadline`` (a
-    :func:`time.perf_counter` value) passes. Returns the search's
-    :class:`WitnessStatistics`; they are also recorded in ``solution.statistics``
-    (``proven_hypotheses``, ``undecided_hypotheses``, ``witness_starts``,
-    ``witness_evaluations``, ``witness_budget_exhausted``), with a message in
-    ``solution.messages`` naming the hypotheses left undecided and why.
-    """
-    start = time.perf_counter()
-    stats = WitnessStatistics()
-    chosen = solution.hypotheses if max_hypotheses is None else solution.hypotheses[:max_hypotheses]
-    most = None if restarts is None else 2 + restarts
-    searches = []
-    for h in chosen:
-        model = HypothesisModel(log, h.assignment, use_sensor=use_sensor)
-        poses_box = {pid: h.poses[k] for k, pid in enumerate(h.pose_ids)}
-        landmarks_box = {lid: h.landmarks[k] for k, lid in enumerate(h.landmark_ids)}
-        searches.append(
-            _Search(model, poses_box, landmarks_box, seed, deadline, max_evaluations, stats)
-        )
-    batch = 2
-    while True:
-        open_ = [s for s in searches if not s.finished and (most is None or s.tried < most)]
-        if not open_:
-            break
-        if stats.evaluations >= max_total_evaluations:
-            stats.out_of_work = True
-            break
-        for search in open_:
-            search.run(batch if most is None else min(batch, most - search.tried))
-        batch = min(2 * batch, 32)
-    proven = 0
-    for h, search in zip(chosen, searches, strict=True):
-        if search.box is None:
-            h.status, h.witness = NOT_REFUTED, None
-            continue
-        point = search.point
-        assert point is not None
-        poses = np.full((len(h.pose_ids), 3), np.nan)
-        for k, pid in enumerate(h.pose_ids):
-            if pid in point.pose_ids:
-                poses[k] = point.pose(pid)
-        landmarks = np.full((len(h.landmark_ids), 2), np.nan)
-        for k, lid in enumerate(h.landmark_ids):
-            if lid in point.landmark_ids:
-                landmarks[k] = point.landmark(lid)
-        h.status = PROVEN
-        h.witness = {"poses_xyt": poses, "landmarks_xy": landmarks}
-        proven += 1
-    # proven ones first (see Hypothesis.rank_key); the order is otherwise kept
-    chosen.sort(key=lambda h: h.rank_key)
-    solution.hypotheses[: len(chosen)] = chosen
-    unfinished = [rank for rank, h in enumerate(chosen, start=1) if h.status != PROVEN]
-    solution.timings["certify_s"] = time.perf_counter() - start
-    solution.statistics["proven_hypotheses"] = proven
-    solution.statistics["undecided_hypotheses"] = len(unfinished)
-    solution.statistics["witness_starts"] = stats.starts
-    solution.statistics["witness_evaluations"] = stats.evaluations
-    solution.statistics["witness_failed_starts"] = stats.failed_starts
-    solution.statistics["witness_budget_exhausted"] = int(stats.budget_exhausted)
-    if unfinished:
-        why = (
-            "its time budget"
-            if stats.out_of_time
-            else f"its work limit ({max_evaluations} evaluations per hypothesis, "
-            f"{max_total_evaluations} in all)"
-            if stats.out_of_work
-            else "its starts"
-        )
-        solution.messages.append(
-            f"the witness search stopped at {why}: {len(unfinished)} of {len(chosen)} "
-            f"hypotheses undecided (not refuted, not proven): {_ranges(unfinished)}"
-        )
-    return stats
-
-
-def _ranges(ranks: list[int]) -> str:
-    """``[1, 2, 3, 7]`` as ``"1-3, 7"``."""
-    parts = []
-    first = last = ranks[0]
-    for r in ranks[1:]:
-        if r == last + 1:
-            last = r
-            continue
-        parts.append(f"{first}-{last}" if last > first else str(first))
-        first = last = r
-    parts.append(f"{first}-{last}" if last > first else str(first))
-    return ", ".join(parts)

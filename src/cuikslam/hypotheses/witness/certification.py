@@ -1,0 +1,139 @@
+"""Certifying a solution: the witness search on every hypothesis, sharing one budget.
+
+:func:`certify` runs a :class:`~.find.WitnessSearch` per hypothesis of a
+:class:`~cuikslam.results.Solution`, round-robin, marks the proven ones (only a point
+:mod:`.verify` proves makes a hypothesis ``proven consistent``), ranks them again and
+records the search's statistics and what it left undecided.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from cuikslam.hypotheses.witness.find import (
+    MAX_EVALUATIONS,
+    MAX_TOTAL_EVALUATIONS,
+    WitnessSearch,
+    WitnessStatistics,
+)
+from cuikslam.hypotheses.witness.model import HypothesisModel
+from cuikslam.log.records import Log
+from cuikslam.results.solution import NOT_REFUTED, PROVEN, Solution
+
+
+def certify(
+    log: Log,
+    solution: Solution,
+    *,
+    seed: int = 0,
+    restarts: int | None = None,
+    max_hypotheses: int | None = None,
+    use_sensor: bool = True,
+    deadline: float | None = None,
+    max_evaluations: int = MAX_EVALUATIONS,
+    max_total_evaluations: int = MAX_TOTAL_EVALUATIONS,
+) -> WitnessStatistics:
+    """Mark every hypothesis of ``solution`` whose consistency is proven.
+
+    For each hypothesis (the first ``max_hypotheses`` when given), the search of
+    :func:`find_witness` (started from its boxes, then midpoints, then random points) and
+    :func:`verify_witness`; on success ``status`` becomes ``PROVEN`` and ``witness`` holds
+    ``poses_xyt`` (rows in the hypothesis' ``pose_ids`` order) and ``landmarks_xy`` (rows in
+    its ``landmark_ids`` order); otherwise they become (or stay) ``NOT_REFUTED`` without a
+    witness. The decided hypotheses are then ranked again, proven ones first
+    (:attr:`~cuikslam.results.Hypothesis.rank_key`); those beyond ``max_hypotheses`` are
+    untouched.
+
+    The hypotheses share the budget round-robin: every one gets its first two starts (most
+    consistent hypotheses are proven by the first), then the unproven ones get random
+    starts in growing rounds, until each is proven, has used ``max_evaluations`` residual
+    evaluations (or ``2 + restarts`` starts, when given), all of them together have used
+    ``max_total_evaluations`` (checked between rounds), or ``deadline`` (a
+    :func:`time.perf_counter` value) passes. Returns the search's
+    :class:`WitnessStatistics`; they are also recorded in ``solution.statistics``
+    (``proven_hypotheses``, ``undecided_hypotheses``, ``witness_starts``,
+    ``witness_evaluations``, ``witness_budget_exhausted``), with a message in
+    ``solution.messages`` naming the hypotheses left undecided and why.
+    """
+    start = time.perf_counter()
+    stats = WitnessStatistics()
+    chosen = solution.hypotheses if max_hypotheses is None else solution.hypotheses[:max_hypotheses]
+    most = None if restarts is None else 2 + restarts
+    searches = []
+    for h in chosen:
+        model = HypothesisModel(log, h.assignment, use_sensor=use_sensor)
+        poses_box = {pid: h.poses[k] for k, pid in enumerate(h.pose_ids)}
+        landmarks_box = {lid: h.landmarks[k] for k, lid in enumerate(h.landmark_ids)}
+        searches.append(
+            WitnessSearch(model, poses_box, landmarks_box, seed, deadline, max_evaluations, stats)
+        )
+    batch = 2
+    while True:
+        open_ = [s for s in searches if not s.finished and (most is None or s.tried < most)]
+        if not open_:
+            break
+        if stats.evaluations >= max_total_evaluations:
+            stats.out_of_work = True
+            break
+        for search in open_:
+            search.run(batch if most is None else min(batch, most - search.tried))
+        batch = min(2 * batch, 32)
+    proven = 0
+    for h, search in zip(chosen, searches, strict=True):
+        if search.box is None:
+            h.status, h.witness = NOT_REFUTED, None
+            continue
+        point = search.point
+        assert point is not None
+        poses = np.full((len(h.pose_ids), 3), np.nan)
+        for k, pid in enumerate(h.pose_ids):
+            if pid in point.pose_ids:
+                poses[k] = point.pose(pid)
+        landmarks = np.full((len(h.landmark_ids), 2), np.nan)
+        for k, lid in enumerate(h.landmark_ids):
+            if lid in point.landmark_ids:
+                landmarks[k] = point.landmark(lid)
+        h.status = PROVEN
+        h.witness = {"poses_xyt": poses, "landmarks_xy": landmarks}
+        proven += 1
+    # proven ones first (see Hypothesis.rank_key); the order is otherwise kept
+    chosen.sort(key=lambda h: h.rank_key)
+    solution.hypotheses[: len(chosen)] = chosen
+    unfinished = [rank for rank, h in enumerate(chosen, start=1) if h.status != PROVEN]
+    solution.timings["certify_s"] = time.perf_counter() - start
+    solution.statistics["proven_hypotheses"] = proven
+    solution.statistics["undecided_hypotheses"] = len(unfinished)
+    solution.statistics["witness_starts"] = stats.starts
+    solution.statistics["witness_evaluations"] = stats.evaluations
+    solution.statistics["witness_failed_starts"] = stats.failed_starts
+    solution.statistics["witness_budget_exhausted"] = int(stats.budget_exhausted)
+    if unfinished:
+        why = (
+            "its time budget"
+            if stats.out_of_time
+            else f"its work limit ({max_evaluations} evaluations per hypothesis, "
+            f"{max_total_evaluations} in all)"
+            if stats.out_of_work
+            else "its starts"
+        )
+        solution.messages.append(
+            f"the witness search stopped at {why}: {len(unfinished)} of {len(chosen)} "
+            f"hypotheses undecided (not refuted, not proven): {_ranges(unfinished)}"
+        )
+    return stats
+
+
+def _ranges(ranks: list[int]) -> str:
+    """``[1, 2, 3, 7]`` as ``"1-3, 7"``."""
+    parts = []
+    first = last = ranks[0]
+    for r in ranks[1:]:
+        if r == last + 1:
+            last = r
+            continue
+        parts.append(f"{first}-{last}" if last > first else str(first))
+        first = last = r
+    parts.append(f"{first}-{last}" if last > first else str(first))
+    return ", ".join(parts)
