@@ -59,11 +59,12 @@ BISECTION_SHARE = 0.5
 """Share of the search's time left that bisection may use on the survivors."""
 BISECTION_PARTS = 512
 """Parts each survivor's bisection may narrow at most."""
-BISECTION_TOTAL_PARTS = 4096
-"""Parts the bisections of all survivors together may narrow at most."""
-BISECTION_PARTS_PER_NODE = 4
-"""Parts the bisections may narrow per node the search created (at least
-``BISECTION_MIN_PARTS``): bisection costs about as much as the search itself did."""
+BISECTION_TOTAL_PARTS = 32_768
+"""Parts the bisections of all survivors together may narrow at most (with a time budget,
+its share of the time bounds them first)."""
+BISECTION_PARTS_PER_NODE = 1
+"""Without a time budget, parts the bisections may narrow per node the search created (at
+least ``BISECTION_MIN_PARTS``): bisection then costs about as much as the search did."""
 BISECTION_MIN_PARTS = 256
 MAINTAIN_EVERY = 1024
 """Node expansions between two looks at the shared graph's housekeeping."""
@@ -274,15 +275,17 @@ def _bisect_survivors(
 ) -> list[Node]:
     """The survivors that bisection does not prove impossible (:mod:`.bisection`), when
     there are 2 to ``limit`` of them; it may use ``BISECTION_SHARE`` of the time left to
-    the deadline and ``BISECTION_PARTS`` parts per survivor, in all
-    ``BISECTION_PARTS_PER_NODE`` per node created by the search, between
-    ``BISECTION_MIN_PARTS`` and ``BISECTION_TOTAL_PARTS``. ``refute`` runs them."""
+    the deadline and ``BISECTION_PARTS`` parts per survivor, ``BISECTION_TOTAL_PARTS`` in
+    all, or without a deadline ``BISECTION_PARTS_PER_NODE`` per node created by the search
+    (at least ``BISECTION_MIN_PARTS``). ``refute`` runs them."""
     if len(survivors) < 2 or len(survivors) > limit:
         return survivors  # a lone survivor is left to the witness search to prove
     deadline = portion(explorer.deadline, BISECTION_SHARE)
     bisections = [explorer.bisection(node) for node in survivors]
-    total = BISECTION_PARTS_PER_NODE * explorer.stats.created
-    total = min(BISECTION_TOTAL_PARTS, max(BISECTION_MIN_PARTS, total))
+    total = BISECTION_TOTAL_PARTS
+    if deadline is None:
+        per_node = BISECTION_PARTS_PER_NODE * explorer.stats.created
+        total = min(total, max(BISECTION_MIN_PARTS, per_node))
     refuted = refute(bisections, deadline, BISECTION_PARTS, total)
     explorer.stats.refuted_by_bisection += sum(refuted)
     return [n for n, r in zip(survivors, refuted, strict=True) if not r]
