@@ -54,8 +54,10 @@ class Bisection:
     poses: np.ndarray
     landmarks: np.ndarray
     parts: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
-    unsplit: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
-    """Parts with no finite variable left to split (kept for the witness search)."""
+    unsplit: int = 0
+    """Parts with no finite variable left to split (not refuted: the hypothesis stands)."""
+    last_unsplit: tuple[np.ndarray, np.ndarray] | None = None
+    """The latest of them, kept for the witness search (one, so memory stays bounded)."""
     refuted_parts: int = 0
     narrowed_parts: int = 0
 
@@ -86,7 +88,8 @@ class Bisection:
             lo, hi = self.parts.pop()
             var = self._widest(lo, hi)
             if var < 0:
-                self.unsplit.append((lo, hi))
+                self.unsplit += 1
+                self.last_unsplit = (lo, hi)
                 continue
             mid = 0.5 * lo[var] + 0.5 * hi[var]
             halves = []
@@ -105,7 +108,7 @@ class Bisection:
         """The most recently narrowed part (the deepest), or None when all are refuted."""
         if self.parts:
             return self.parts[-1]
-        return self.unsplit[-1] if self.unsplit else None
+        return self.last_unsplit
 
     def _narrow(self, lo: np.ndarray, hi: np.ndarray, var: int) -> bool:
         """Narrow a part after ``var`` was split; False when it is proven empty."""
