@@ -20,8 +20,10 @@ from cuikslam.hypotheses.search import solve_unknown
 from cuikslam.hypotheses.witness import certify
 from cuikslam.log.records import Log
 from cuikslam.narrowing.consistency import StrengthenReport, resolve_level, strengthen
+from cuikslam.narrowing.outliers import RelaxedReport, narrow_with_outliers
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
 from cuikslam.options import SolveOptions
+from cuikslam.outliers import outlier_messages, outlier_scope, outliers_to_json, reject_unknown
 from cuikslam.results.solution import Hypothesis, Solution
 
 __all__ = ["budget_message", "hypothesis_from_graph", "solve"]
@@ -160,6 +162,7 @@ def solve(
     incomplete search, each with a message in ``Solution.messages``.
     """
     options = (options or SolveOptions()).replace(**overrides)
+    reject_unknown(log)  # outliers with unknown correspondence: not supported yet
     ensure_round_to_nearest()
     warm_up_s = warm_up(log.has_unknown_correspondence, options.consistency.value != "hull")
     start = time.perf_counter()
@@ -183,6 +186,12 @@ def solve(
     certify_limit = options.certify_limit
     if n_poses > CERTIFY_MAX_POSES:
         certify_limit = 0  # the witness search is a dense least-squares problem
+    if log.outlier_bounds and solution.hypotheses:
+        certify_limit = 0  # a witness would have to leave the outliers out: not certified
+        solution.messages.append(
+            "not certified: the witness search does not handle declared outliers, so the "
+            "hypothesis stays 'not refuted'"
+        )
     certify_start = time.perf_counter()
     certified = replace(solution, hypotheses=solution.hypotheses[:certify_limit])
     certify(log, certified, deadline=deadline)
@@ -205,9 +214,20 @@ def _solve_known(
     start = time.perf_counter()
     assignment = [str(o.landmark) for o in log.observations]
     graph = KinematicGraph.from_log(log)
-    result = propagate(graph, rtol=rtol)
     report = StrengthenReport(level=consistency)
-    if not result.is_empty:
+    outliers = None
+    if log.outlier_bounds:
+        relaxed = RelaxedReport(strengthen=StrengthenReport(level="hull"))
+        lo, hi = graph.domains()
+        result = narrow_with_outliers(
+            Arrays.of(graph), lo, hi, outlier_scope(log, graph), consistency, rtol,
+            DEFAULT_ROUNDS, deadline=portion(deadline, STRENGTHEN_SHARE), report=relaxed,
+        )  # fmt: skip
+        report = relaxed.strengthen
+        outliers = outliers_to_json(log, relaxed)
+    else:
+        result = propagate(graph, rtol=rtol)
+    if not result.is_empty and outliers is None:
         strengthened = strengthen(
             Arrays.of(graph), result.lo, result.hi, consistency, rtol, DEFAULT_ROUNDS,
             progress, deadline=portion(deadline, STRENGTHEN_SHARE), report=report,
@@ -230,16 +250,22 @@ def _solve_known(
         "lp_budget_exhausted": int(report.budget_exhausted),
     }
     messages = []
+    if outliers is not None:
+        statistics["outliers_proven"] = len(outliers["proven"])
+        messages.extend(outlier_messages(outliers))
     if report.budget_exhausted and not result.is_empty:
         messages.append(budget_message(consistency, report))
     if result.is_empty:
+        if outliers is None:
+            messages.append("the log is inconsistent: its constraints contract to empty (a proof)")
         return Solution(
             hypotheses=[],
             statistics=statistics,
             timings={"solve_s": elapsed},
             log_path=log.path,
             consistency=consistency,
-            messages=["the log is inconsistent: its constraints contract to empty (a proof)"],
+            messages=messages,
+            outliers=outliers,
         )
     hypothesis = hypothesis_from_graph(graph, result.lo, result.hi, assignment, report.level)
     return Solution(
@@ -249,6 +275,7 @@ def _solve_known(
         log_path=log.path,
         consistency=report.level,
         messages=messages,
+        outliers=outliers,
     )
 
 

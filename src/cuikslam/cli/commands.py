@@ -199,6 +199,9 @@ def cmd_import(args: argparse.Namespace) -> int:
         bearing_bound=args.bearing_bound,
         every_observation=not args.keyframe_observations,
     )
+    from cuikslam.cli.mrclam import declare_outliers
+
+    declare_outliers(log, args, not args.known)
     write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)
     return EXIT_OK
 

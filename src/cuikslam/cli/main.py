@@ -298,6 +298,9 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="keep only the observations made at a keyframe sample",
     )
+    from cuikslam.cli.mrclam import add_outlier_options
+
+    add_outlier_options(p)
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=cmd_import)
 

@@ -8,7 +8,13 @@ import sys
 
 from cuikslam.cli._common import CommandError
 
-__all__ = ["add_bound_options", "add_mrclam_parser", "bounds_from_args"]
+__all__ = [
+    "add_bound_options",
+    "add_mrclam_parser",
+    "add_outlier_options",
+    "bounds_from_args",
+    "declare_outliers",
+]
 
 
 def _finite(text: str) -> float:
@@ -51,6 +57,52 @@ def add_bound_options(p: argparse.ArgumentParser) -> None:
     )
 
 
+def _whole(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: need a whole number >= 0")
+    return value
+
+
+def add_outlier_options(p: argparse.ArgumentParser) -> None:
+    """``--outliers Q`` and ``--outliers-window P W``: ``outliers`` records in the log."""
+    p.add_argument(
+        "--outliers",
+        type=_whole,
+        metavar="Q",
+        help="declare in the log that at most Q observations in all miss their truth "
+        "(needs known correspondence)",
+    )
+    p.add_argument(
+        "--outliers-window",
+        type=_whole,
+        nargs=2,
+        metavar=("P", "W"),
+        help="declare at most P outliers among the observations of each block of W "
+        "consecutive poses (W >= 1; with or without --outliers)",
+    )
+
+
+def declare_outliers(log, args: argparse.Namespace, unknown: bool) -> None:
+    """Put the ``outliers`` records the options ask for at the head of ``log``."""
+    from cuikslam.log.records import OutlierBound
+
+    declared = []
+    if args.outliers is not None:
+        declared.append(OutlierBound(args.outliers))
+    if args.outliers_window is not None:
+        per_block, window = args.outliers_window
+        if window < 1:
+            raise CommandError("--outliers-window P W: W must be at least 1 pose")
+        declared.append(OutlierBound(per_block, window))
+    if declared and unknown:
+        raise CommandError("--outliers needs known correspondence (landmark ids kept)")
+    log.records[0:0] = declared
+
+
 def add_mrclam_parser(datasets: argparse._SubParsersAction) -> None:
     """The ``mrclam`` choice of ``cuikslam import`` (imports nothing heavy: every command
     builds this parser)."""
@@ -82,6 +134,7 @@ def add_mrclam_parser(datasets: argparse._SubParsersAction) -> None:
         "each its own landmark",
     )
     p.add_argument("--unknown", action="store_true", help="leave out landmark ids")
+    add_outlier_options(p)
     add_bound_options(p)
     p.add_argument(
         "--bounds",
@@ -141,6 +194,7 @@ def _cmd_import_mrclam(args: argparse.Namespace) -> int:
         if type(err) is not ValueError:  # an InputFileError names its file: main prints it
             raise
         raise CommandError(f"import mrclam: {err}") from None
+    declare_outliers(log, args, args.unknown)
     write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)
     if not args.quiet:
         print(report.describe(), file=sys.stderr)

@@ -21,6 +21,7 @@ from cuikslam.log.records import (
     LandmarkPrior,
     Observation,
     Odometry,
+    OutlierBound,
     PosePrior,
     Record,
     RelativePose,
@@ -222,6 +223,21 @@ def _sensor(f: dict[str, Any], line: int) -> SensorModel:
     )
 
 
+def _whole(value: Any, name: str, *, least: int) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < least:
+        raise Problem(f'field "{name}" must be a whole number >= {least}, got {_show(value)}')
+    return value
+
+
+def _outliers(f: dict[str, Any], line: int) -> OutlierBound:
+    window = f.get("window")
+    return OutlierBound(
+        at_most=_whole(f["at_most"], "at_most", least=0),
+        window=None if window is None else _whole(window, "window", least=1),
+        line=line,
+    )
+
+
 RECORD_TYPES: dict[str, _Schema] = {
     "prior": _Schema(("pose", "x", "y", "theta"), (), _prior),
     "odometry": _Schema(("from", "to", "turn", "distance"), (), _odometry),
@@ -232,6 +248,7 @@ RECORD_TYPES: dict[str, _Schema] = {
     "landmark": _Schema(("id", "class", "x", "y"), (), _landmark),
     "sensor": _Schema((), ("max_range", "fov", "nearest_margin"), _sensor),
     "class": _Schema(("class",), ("at_most", "min_separation", "x", "y"), _class_prior),
+    "outliers": _Schema(("at_most",), ("window",), _outliers),
 }
 
 _TYPE_LIST = ", ".join(f'"{t}"' for t in RECORD_TYPES)

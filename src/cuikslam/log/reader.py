@@ -22,6 +22,7 @@ from cuikslam.log.records import (
     Log,
     Observation,
     Odometry,
+    OutlierBound,
     PosePrior,
     Record,
     RelativePose,
@@ -129,6 +130,7 @@ def _check_order(records: list[Record], path: str) -> None:
     sensor_line: int | None = None
     offset_line: int | None = None
     class_line: dict[str, int] = {}
+    outliers_line: dict[bool, int] = {}
     no_offsets = (
         "observation offsets cannot be combined with a sensor record: its negative "
         "information is modelled from the robot's pose, not from the sensor's"
@@ -193,6 +195,15 @@ def _check_order(records: list[Record], path: str) -> None:
                 if earlier != record.line:
                     fail(
                         record, f'a second class record for "{cls}"; the first is on line {earlier}'
+                    )
+            case OutlierBound(window=window):
+                earlier = outliers_line.setdefault(window is None, record.line)
+                if earlier != record.line:
+                    scope = "for the whole log" if window is None else "per window"
+                    fail(
+                        record,
+                        f"a second outliers record {scope}; the first is on line {earlier} "
+                        '(give at most one without "window" and one with it)',
                     )
             case SensorModel():
                 if sensor_line is not None:

@@ -18,6 +18,7 @@ __all__ = [
     "Log",
     "Observation",
     "Odometry",
+    "OutlierBound",
     "PosePrior",
     "Record",
     "RelativePose",
@@ -139,8 +140,30 @@ class SensorModel:
     line: int = 0
 
 
+@dataclass(frozen=True)
+class OutlierBound:
+    """At most ``at_most`` observations are outliers: their interval misses the truth.
+
+    Without ``window`` the bound holds for the whole log. With ``window`` = W, the poses
+    are taken in the order the log first mentions them and cut into consecutive blocks of
+    W poses (the first W, the next W, ...); the observations made from the poses of each
+    block hold at most ``at_most`` outliers. Every other record must still hold its truth.
+    """
+
+    at_most: int
+    window: int | None = None
+    line: int = 0
+
+
 Record = (
-    PosePrior | Odometry | RelativePose | Observation | LandmarkPrior | ClassPrior | SensorModel
+    PosePrior
+    | Odometry
+    | RelativePose
+    | Observation
+    | LandmarkPrior
+    | ClassPrior
+    | SensorModel
+    | OutlierBound
 )
 
 
@@ -181,6 +204,11 @@ class Log:
         """The sensor model, if the log declares one."""
         found = [r for r in self.records if isinstance(r, SensorModel)]
         return found[0] if found else None
+
+    @property
+    def outlier_bounds(self) -> list[OutlierBound]:
+        """The outlier declarations (at most one for the whole log, one per window)."""
+        return [r for r in self.records if isinstance(r, OutlierBound)]
 
     @property
     def pose_ids(self) -> list[int]:

@@ -21,6 +21,7 @@ from cuikslam.log.records import (
     Log,
     Observation,
     Odometry,
+    OutlierBound,
     PosePrior,
     Record,
     RelativePose,
@@ -134,6 +135,11 @@ def _record_to_json(record: Record) -> dict[str, Any]:
                 fields["fov"] = float(record.fov)
             if record.nearest_margin is not None:
                 fields["nearest_margin"] = float(record.nearest_margin)
+            return fields
+        case OutlierBound():
+            fields = {"type": "outliers", "at_most": operator.index(record.at_most)}
+            if record.window is not None:
+                fields["window"] = operator.index(record.window)
             return fields
     raise TypeError(f"not a log record: {record!r}")
 

@@ -78,6 +78,7 @@ def solution_to_json(solution: Solution) -> dict[str, Any]:
         "consistency": solution.consistency,
         "cuikslam_version": __version__,
         **({} if solution.correspondence is None else {"correspondence": solution.correspondence}),
+        **({} if solution.outliers is None else {"outliers": solution.outliers}),
     }
 
 
@@ -192,6 +193,7 @@ def read_result_file(path: str | os.PathLike[str]) -> Solution:
             consistency=str(doc.get("consistency", "")),
             messages=list(doc.get("messages", [])),
             correspondence=doc.get("correspondence"),
+            outliers=doc.get("outliers"),
         )
     except (KeyError, TypeError, ValueError, AttributeError) as err:
         problem = f"missing key {err}" if isinstance(err, KeyError) else str(err)

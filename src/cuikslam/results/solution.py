@@ -90,6 +90,9 @@ class Solution:
     correspondence: dict | None = None
     """For unknown correspondence: what the reported survivors agree on (JSON-ready; see
     :func:`cuikslam.results.summary.summarize` and :func:`.summary.summary_to_json`)."""
+    outliers: dict | None = None
+    """When the log declares outliers: the declaration and the observations proven to be
+    outliers (JSON-ready; see :func:`cuikslam.outliers.outliers_to_json`)."""
 
     @property
     def best(self) -> Hypothesis:

@@ -1,0 +1,130 @@
+"""Declared outliers in a log with known correspondence: the glue between the log and
+:mod:`cuikslam.narrowing.outliers`.
+
+A log may say, with ``outliers`` records (``docs/log-format.md``), that at most q of its
+observations miss their truth, in all and/or in each block of ``window`` poses. The boxes
+then hold the truth whenever the declaration does, and the observations proven to be
+outliers are listed: in the result JSON (key ``outliers``), in the solve's messages and on
+the terminal. Nothing is dropped silently: an observation is only ever set aside by a
+proof (no solution inside a box that holds the truth).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from cuikslam.errors import InputFileError
+from cuikslam.graph.encoding import KIND, OBSERVATION
+from cuikslam.graph.kinematic_graph import KinematicGraph
+from cuikslam.log.records import Log, Observation, Odometry, PosePrior, RelativePose
+from cuikslam.narrowing.outliers import NO_LIMIT, OutlierScope, RelaxedReport
+
+__all__ = ["LISTED", "outlier_messages", "outlier_scope", "outliers_to_json", "reject_unknown"]
+
+LISTED = 10
+"""Proven outliers named in the messages (the result JSON lists every one)."""
+
+
+def reject_unknown(log: Log) -> None:
+    """Refuse an ``outliers`` record in a log with unknown correspondence.
+
+    Raises
+    ------
+    InputFileError
+        Naming the log and the line of the first ``outliers`` record.
+    """
+    bounds = log.outlier_bounds
+    if bounds and log.has_unknown_correspondence:
+        raise InputFileError(
+            log.path,
+            bounds[0].line,
+            "an outliers record needs known correspondence (every observation names its "
+            "landmark); with unknown correspondence outliers are not supported yet: remove "
+            "the record or name the landmarks",
+        )
+
+
+def pose_order(log: Log) -> dict[int, int]:
+    """Each pose's rank in the order the log first mentions it."""
+    order: dict[int, int] = {}
+    for record in log.records:
+        if isinstance(record, PosePrior | Observation):
+            order.setdefault(record.pose, len(order))
+        elif isinstance(record, Odometry | RelativePose):
+            order.setdefault(record.source, len(order))
+            order.setdefault(record.target, len(order))
+    return order
+
+
+def outlier_scope(log: Log, graph: KinematicGraph) -> OutlierScope:
+    """Every observation of ``log`` as a member that may be an outlier, with the log's
+    declared allowances (``graph`` is ``KinematicGraph.from_log(log)``: its k-th
+    ``OBSERVATION`` row is the log's k-th observation)."""
+    members = np.flatnonzero(graph.factor_table()[:, KIND] == OBSERVATION).astype(np.int64)
+    observations = log.observations
+    assert members.size == len(observations)
+    at_most, per_block, window = NO_LIMIT, NO_LIMIT, None
+    for bound in log.outlier_bounds:
+        if bound.window is None:
+            at_most = bound.at_most
+        else:
+            per_block, window = bound.at_most, bound.window
+    block = np.zeros(members.size, dtype=np.int64)
+    if window is not None:
+        rank = pose_order(log)
+        block[:] = [rank[o.pose] // window for o in observations]
+    return OutlierScope(members=members, block=block, at_most=at_most, per_block=per_block)
+
+
+def outliers_to_json(log: Log, report: RelaxedReport) -> dict[str, Any]:
+    """The result JSON's ``outliers``: the declaration and the proven outliers (log order)."""
+    observations = log.observations
+    proven = []
+    for i in sorted(report.proven):
+        o = observations[i]
+        proven.append({"observation": i, "line": o.line, "pose": o.pose, "landmark": o.landmark})
+    return {
+        "declared": [
+            {"at_most": b.at_most, "window": b.window, "line": b.line} for b in log.outlier_bounds
+        ],
+        "proven": proven,
+        "exceeded": report.exceeded,
+    }
+
+
+def _declared_text(declared: list[dict[str, Any]]) -> str:
+    parts = []
+    for d in declared:
+        if d["window"] is None:
+            parts.append(f"at most {d['at_most']} in all")
+        else:
+            parts.append(f"at most {d['at_most']} per {d['window']} poses")
+    return " and ".join(parts)
+
+
+def outlier_messages(summary: dict[str, Any]) -> list[str]:
+    """What a solve says of its outliers, in words (for ``Solution.messages``)."""
+    declared = _declared_text(summary["declared"])
+    proven = summary["proven"]
+    if summary["exceeded"]:
+        return [
+            f"the log is inconsistent with its outliers declaration ({declared}): more "
+            f"observations are outliers than declared (a proof; {len(proven)} proven before "
+            "the box became empty), or another record misses its truth"
+        ]
+    lines = [
+        f"declared outliers: {declared}; {len(proven)} observation(s) proven to be outliers"
+        + (
+            " (each has no solution inside boxes that hold the truth whenever the declaration does)"
+            if proven
+            else ""
+        )
+        + "; the boxes hold the truth whenever the declaration does"
+    ]
+    for p in proven[:LISTED]:
+        lines.append(f"  outlier: line {p['line']}, pose {p['pose']} sees {p['landmark']}")
+    if len(proven) > LISTED:
+        lines.append(f"  … {len(proven) - LISTED} more in the result JSON (key outliers)")
+    return lines
