@@ -128,3 +128,21 @@ def test_a_bad_outliers_record_exits_2(tmp_path: Path) -> None:
     _write(tmp_path, PRIOR, '{"type": "outliers", "at_most": -2}')
     result = run("solve", "trip.jsonl", cwd=tmp_path)
     assert_input_error(result, "trip.jsonl:2:", '"at_most" must be a whole number >= 0')
+
+
+def test_every_key_of_the_outliers_is_documented() -> None:
+    import re
+
+    from cuikslam.results.io import solution_to_json
+    from cuikslam.solver import solve
+    from test_result_doc import DOC, _keys
+
+    log = parse_log_lines(
+        [PRIOR, '{"type": "outliers", "at_most": 1}', MARK, MOVE, sighting(1, 9.0, 9.5)]
+    )
+    document = solution_to_json(solve(log, consistency="hull", time_budget=None))
+    assert document["outliers"]["proven"]  # every key of a proven outlier is seen
+    named = set(re.findall(r"[`\"]([a-z_]+)[`\"]", DOC.read_text(encoding="utf-8")))
+    keys = _keys({"outliers": document["outliers"], "statistics": document["statistics"]})
+    assert "outliers_proven" in keys
+    assert keys - named == set()
