@@ -146,3 +146,31 @@ def test_every_key_of_the_outliers_is_documented() -> None:
     keys = _keys({"outliers": document["outliers"], "statistics": document["statistics"]})
     assert "outliers_proven" in keys
     assert keys - named == set()
+
+
+def test_calibrate_check_says_whether_the_declaration_holds(tmp_path: Path) -> None:
+    _write(
+        tmp_path,
+        PRIOR,
+        '{"type": "outliers", "at_most": 1}',
+        '{"type": "outliers", "at_most": 0, "window": 1}',
+        MARK,
+        MOVE,
+        sighting(0, 4.8, 5.2),
+        sighting(1, 9.0, 9.5),
+    )
+    truth = {
+        "poses": {"0": [0, 0, 0], "1": [1.05, 0, 0]},
+        "landmarks": {"A": {"class": "post", "x": 5, "y": 0}},
+        "assignment": ["A", "A"],
+    }
+    (tmp_path / "t.json").write_text(json.dumps(truth), encoding="utf-8")
+    result = run(
+        "calibrate", "check", "trip.jsonl", "--truth", "t.json", "--json", "c.json", cwd=tmp_path
+    )
+    assert result.returncode == 0, result.stderr
+    assert (
+        "declared outliers: at most 1 in all: 1 outside (holds); at most 0 per 1 poses: 1 in "
+        "the worst block (BROKEN): the guarantee does not hold"
+    ) in result.stdout
+    assert json.loads((tmp_path / "c.json").read_text())["declaration_holds"] is False

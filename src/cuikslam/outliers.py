@@ -21,7 +21,15 @@ from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.log.records import Log, Observation, Odometry, PosePrior, RelativePose
 from cuikslam.narrowing.outliers import NO_LIMIT, OutlierScope, RelaxedReport
 
-__all__ = ["LISTED", "outlier_messages", "outlier_scope", "outliers_to_json", "reject_unknown"]
+__all__ = [
+    "LISTED",
+    "check_declaration",
+    "outlier_messages",
+    "outlier_scope",
+    "outliers_to_json",
+    "pose_order",
+    "reject_unknown",
+]
 
 LISTED = 10
 """Proven outliers named in the messages (the result JSON lists every one)."""
@@ -128,3 +136,41 @@ def outlier_messages(summary: dict[str, Any]) -> list[str]:
     if len(proven) > LISTED:
         lines.append(f"  … {len(proven) - LISTED} more in the result JSON (key outliers)")
     return lines
+
+
+def check_declaration(log: Log, outside: list[int], moves_outside: int = 0) -> tuple[bool, str]:
+    """Whether the log's outlier declaration holds, given the observations (indices in log
+    order) that truly miss their truth (e.g. from
+    :func:`cuikslam.results.measurement_check.check_log`).
+
+    Returns
+    -------
+    (bool, str)
+        True when every ``outliers`` record holds (and no move misses its truth, which no
+        declaration covers), and one sentence saying why.
+    """
+    rank = pose_order(log)
+    observations = log.observations
+    parts = []
+    holds = True
+    for bound in log.outlier_bounds:
+        if bound.window is None:
+            ok = len(outside) <= bound.at_most
+            parts.append(f"at most {bound.at_most} in all: {len(outside)} outside")
+        else:
+            blocks: dict[int, int] = {}
+            for i in outside:
+                block = rank[observations[i].pose] // bound.window
+                blocks[block] = blocks.get(block, 0) + 1
+            most = max(blocks.values(), default=0)
+            ok = most <= bound.at_most
+            parts.append(
+                f"at most {bound.at_most} per {bound.window} poses: {most} in the worst block"
+            )
+        parts[-1] += " (holds)" if ok else " (BROKEN)"
+        holds &= ok
+    if moves_outside:
+        parts.append(f"{moves_outside} moves outside, which no declaration covers")
+        holds = False
+    verdict = "the declaration holds" if holds else "the guarantee does not hold"
+    return holds, f"declared outliers: {'; '.join(parts)}: {verdict}"

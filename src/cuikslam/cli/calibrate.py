@@ -144,8 +144,15 @@ def _cmd_check(args: argparse.Namespace) -> int:
             f"{args.log} has {len(log.observations)}"
         )
     found = check_log(log, truth)
+    document = outside_to_json(found)
+    verdict = None
+    if log.outlier_bounds:
+        from cuikslam.outliers import check_declaration
+
+        holds, verdict = check_declaration(log, found.outside_observations, found.moves)
+        document["declaration_holds"] = holds
     if args.json:
-        text = json.dumps(outside_to_json(found), indent=1) + "\n"
+        text = json.dumps(document, indent=1) + "\n"
         write_output(args.json, lambda: atomic_write_text(args.json, text))
     if not args.quiet:
         print(found.describe())
@@ -153,4 +160,6 @@ def _cmd_check(args: argparse.Namespace) -> int:
             print(f"  {line}")
         if len(found.details) > 20:
             print(f"  … {len(found.details) - 20} more (--json lists them all)")
+        if verdict is not None:
+            print(verdict)
     return 0
