@@ -115,8 +115,9 @@ def write_log(world: str, n_poses: int, seed: int, folder: Path) -> Path:
     return path
 
 
-def worker(log_path: str, level: str) -> dict:
-    """Solve one log in this process (known correspondence) and measure it."""
+def worker(log_path: str, level: str, threads: int | None = None) -> dict:
+    """Solve one log in this process (known correspondence) and measure it (``threads``:
+    of the ``lp`` sweeps; None: as the solver decides, from the load)."""
     from cuikslam.graph.kinematic_graph import KinematicGraph
     from cuikslam.log.reader import read_log_file
     from cuikslam.narrowing.consistency import StrengthenReport, resolve_level, strengthen
@@ -133,8 +134,16 @@ def worker(log_path: str, level: str) -> dict:
     lo, hi = result.lo.copy(), result.hi.copy()
     report = StrengthenReport()
     chosen = resolve_level(level, len(graph.pose_ids))
+    try:
+        from cuikslam.narrowing.parts import default_threads
+    except ImportError:  # a baseline from before the parts
+        threads, extra = 1, {}
+    else:
+        threads = default_threads() if threads is None else threads
+        extra = {"threads": threads}
+    load = os.getloadavg()[0]
     lp_start, cpu_start = time.perf_counter(), time.process_time()
-    strengthen(arrays, lo, hi, chosen, DEFAULT_RTOL, DEFAULT_ROUNDS, report=report)
+    strengthen(arrays, lo, hi, chosen, DEFAULT_RTOL, DEFAULT_ROUNDS, report=report, **extra)
     lp_s, lp_cpu_s = time.perf_counter() - lp_start, time.process_time() - cpu_start
     total_s = time.perf_counter() - start
     boxes = graph.pose_boxes(lo, hi)
@@ -154,7 +163,9 @@ def worker(log_path: str, level: str) -> dict:
         "lps": report.lp.solved,
         "lp_rounds": report.lp_rounds,
         "peak_rss_mib": peak_kib / 1024,
-        "load_average": os.getloadavg()[0],
+        "load_average": load,
+        "load_average_after": os.getloadavg()[0],
+        "threads": threads,
         "peak_rss_kib_per_pose": peak_kib / len(graph.pose_ids),
         "widths": {
             c: {"median": float(np.median(widths[:, i])), "max": float(np.max(widths[:, i]))}
@@ -170,13 +181,14 @@ def worker(log_path: str, level: str) -> dict:
     }
 
 
-def run(log_path: Path, level: str, source: Path | None = None) -> dict:
+def run(log_path: Path, level: str, source: Path | None = None, threads: int | None = None) -> dict:
     """:func:`worker` in a fresh process (``source``: a ``src`` folder put first on the path)."""
     env = dict(os.environ)
     if source is not None:
         env["PYTHONPATH"] = str(source) + os.pathsep + env.get("PYTHONPATH", "")
+    more = [] if threads is None else ["--threads", str(threads)]
     done = subprocess.run(
-        [sys.executable, __file__, "--worker", str(log_path), "--level", level],
+        [sys.executable, __file__, "--worker", str(log_path), "--level", level, *more],
         check=True, capture_output=True, text=True, env=env,
     )  # fmt: skip
     return json.loads(done.stdout.strip().splitlines()[-1])
@@ -185,7 +197,8 @@ def run(log_path: Path, level: str, source: Path | None = None) -> dict:
 def _row(label: str, r: dict) -> str:
     w = r["widths"]
     return (
-        f"{label:<10} {r['poses']:>6} {r['lp_s']:8.1f} {r['lp_ms_per_pose']:8.1f} "
+        f"{label:<10} {r['poses']:>6} {r['lp_s']:8.1f} {r['lp_cpu_s']:8.1f} {r['threads']:>3} "
+        f"{r['load_average']:5.2f} {r['lp_ms_per_pose']:8.1f} "
         f"{r['lps']:>7} {r['level']:<14} {w['x']['median']:7.3f} {w['x']['max']:7.3f} "
         f"{w['theta']['median']:7.4f} {w['theta']['max']:7.4f} {r['peak_rss_kib_per_pose']:7.1f}"
     )
@@ -202,13 +215,17 @@ def main() -> None:
     parser.add_argument("--baseline-poses", default="1000")
     parser.add_argument("--baseline-level", default="lp")
     parser.add_argument("--key", help="store the figures under this name (default: the world)")
+    parser.add_argument(
+        "--threads", type=int, help="threads of the lp sweeps (default: as the solver decides)"
+    )
     parser.add_argument("--worker", help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
-        print(json.dumps(worker(args.worker, args.level)))
+        print(json.dumps(worker(args.worker, args.level, args.threads)))
         return
     print(
-        f"{'':<10} {'poses':>6} {'lp s':>8} {'ms/pose':>8} {'LPs':>7} {'level':<14} "
+        f"{'':<10} {'poses':>6} {'lp s':>8} {'CPU s':>8} {'thr':>3} {'load':>5} {'ms/pose':>8} "
+        f"{'LPs':>7} {'level':<14} "
         f"{'x med':>7} {'x max':>7} {'θ med':>7} {'θ max':>7} {'KiB/pose':>7}"
     )
     results: dict = {"runs": [], "baseline": []}
@@ -221,7 +238,7 @@ def main() -> None:
                 print(_row("baseline", r), flush=True)
         for n in (int(p) for p in args.poses.split(",")):
             log = write_log(args.world, n, args.seed, Path(folder))
-            r = run(log, args.level)
+            r = run(log, args.level, threads=args.threads)
             results["runs"].append(r)
             print(_row(args.level, r), flush=True)
     if args.json:

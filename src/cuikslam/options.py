@@ -76,6 +76,10 @@ class SolveOptions:
         Relative shrink below which propagation stops requeueing an operator.
     time_budget : float or None
         Seconds the whole solve may take (None: no limit).
+    threads : int or None
+        Threads the ``lp`` sweeps of a long log may use (None: the cores that other
+        processes are not already using, from the CPU affinity and the load average). The
+        boxes are the same for any number.
     """
 
     consistency: Level = Level.AUTO
@@ -85,9 +89,12 @@ class SolveOptions:
     certify_limit: int | None = None
     rtol: float = 1e-3
     time_budget: float | None = DEFAULT_TIME_BUDGET
+    threads: int | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "consistency", Level.parse(self.consistency))
+        if self.threads is not None and self.threads < 1:
+            raise ValueError(f"threads must be at least 1 (or None), got {self.threads}")
 
     def replace(self, **changes: Any) -> SolveOptions:
         """A copy with ``changes`` (TypeError on a name that is not an option)."""

@@ -182,7 +182,7 @@ def solve(
             on_survivor=on_survivor,
         )
     else:
-        solution = _solve_known(log, consistency, options.rtol, progress, deadline)
+        solution = _solve_known(log, consistency, options.rtol, progress, deadline, options.threads)
     certify_limit = options.certify_limit
     if n_poses > CERTIFY_MAX_POSES:
         certify_limit = 0  # the witness search is a dense least-squares problem
@@ -210,6 +210,7 @@ def _solve_known(
     rtol: float,
     progress: ProgressCallback | None,
     deadline: float | None,
+    threads: int | None = None,
 ) -> Solution:
     start = time.perf_counter()
     assignment = [str(o.landmark) for o in log.observations]
@@ -231,6 +232,7 @@ def _solve_known(
         strengthened = strengthen(
             Arrays.of(graph), result.lo, result.hi, consistency, rtol, DEFAULT_ROUNDS,
             progress, deadline=portion(deadline, STRENGTHEN_SHARE), report=report,
+            threads=threads,
         )  # fmt: skip
         result.applications += strengthened.applications
         result.status = strengthened.status

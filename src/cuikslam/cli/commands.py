@@ -96,6 +96,7 @@ def cmd_solve(args: argparse.Namespace) -> int:
             max_hypotheses=args.max_hypotheses,
             strengthen_limit=args.strengthen_limit,
             strengthen_during=args.strengthen_during,
+            threads=args.threads,
         ),
         time_budget=args.time_budget,
         started=STARTED,

@@ -191,6 +191,14 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="ADDRESS",
         help="run on the Dask cluster whose scheduler is at ADDRESS (e.g. tcp://host:8786)",
     )
+    p.add_argument(
+        "--threads",
+        type=_positive_int,
+        metavar="N",
+        default=SolveOptions.threads,
+        help="threads of the lp sweeps on a long log (default: the cores not already busy, "
+        "from the load average); the boxes are the same for any N",
+    )
     p.add_argument("--truth", help="ground-truth JSON: report whether every box contains it")
     p.add_argument("-q", "--quiet", action="store_true", help="print no table")
     p.add_argument(

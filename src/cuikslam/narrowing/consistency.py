@@ -115,6 +115,7 @@ def strengthen(
     *,
     deadline: float | None = None,
     report: StrengthenReport | None = None,
+    threads: int | None = None,
 ) -> Propagation:
     """Narrow ``lo``/``hi`` in place beyond the fixpoint, to the given consistency level.
 
@@ -140,6 +141,9 @@ def strengthen(
         still has its own iteration and time limits).
     report : StrengthenReport, optional
         Filled in with the level reached and LP counts.
+    threads : int, optional
+        Threads the sweeps of a long log may use (None: the cores not already busy, see
+        :func:`.parts.default_threads`). The boxes are the same for any number.
 
     Returns
     -------
@@ -160,7 +164,7 @@ def strengthen(
         return Propagation(lo, hi, Status.CONSISTENT, 0)
     solved_before = report.lp.solved
     status, applications, finished = polytope_rounds(
-        arrays, lo, hi, rtol, max_rounds, progress, deadline, report
+        arrays, lo, hi, rtol, max_rounds, progress, deadline, report, threads
     )
     if finished:
         report.level = "lp"
@@ -193,7 +197,7 @@ def strengthen(
                 # each half is narrowed as far as the deadline allows (at least propagated),
                 # so the hull of the two halves is sound however early it stops
                 status, count, finished = polytope_rounds(
-                    arrays, half_lo, half_hi, rtol, max_rounds, None, deadline, report
+                    arrays, half_lo, half_hi, rtol, max_rounds, None, deadline, report, threads
                 )
                 applications += count
                 if not finished:

@@ -32,7 +32,11 @@ from scipy import sparse
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import expired, remaining
 from cuikslam.narrowing import _simplex
-from cuikslam.narrowing.safe_bound import safe_bound, safe_lower_bound
+from cuikslam.narrowing.safe_bound import (
+    safe_bound,
+    safe_bounds_of_columns,
+    safe_lower_bound,
+)
 
 __all__ = [
     "LP_ITERATIONS_PER_SIZE",
@@ -243,6 +247,33 @@ def _sparse(y: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
     return len(y), index, np.clip(y[nonzero], -top, top).astype(np.float32)
 
 
+def _keep_sparse(
+    warm: WarmStarts,
+    order: np.ndarray,
+    senses: np.ndarray,
+    duals: np.ndarray,
+    q: int,
+    at: int,
+) -> None:
+    """:func:`_sparse` of ``duals[q:at]`` into ``warm.duals``, the run at once."""
+    if at <= q:
+        return
+    m = duals.shape[1]
+    block = duals[q:at]
+    which, nonzero = np.nonzero(block)
+    index = nonzero.astype(np.int16 if m < 2**15 else np.int32)
+    top = float(np.finfo(np.float32).max)
+    values = np.clip(block[which, nonzero], -top, top).astype(np.float32)
+    ends = np.searchsorted(which, np.arange(at - q + 1))
+    for k in range(at - q):
+        a, b = ends[k], ends[k + 1]
+        warm.duals[int(order[q + k]), bool(senses[q + k] > 0)] = (
+            m,
+            index[a:b].copy(),
+            values[a:b].copy(),
+        )
+
+
 def _reused(
     csc: sparse.csc_matrix,
     row_lo: np.ndarray,
@@ -255,25 +286,25 @@ def _reused(
     """Safe bounds from the multipliers of each column's last LP (no LP solved): valid for
     any multipliers, and close to the LP's bound while its optimal basis stays optimal."""
     ensure_round_to_nearest()
-    m, n = csc.shape
+    m = csc.shape[0]
     box_lo, box_hi = np.ascontiguousarray(box[:, 0]), np.ascontiguousarray(box[:, 1])
-    objective = np.zeros(n)
-    out: tuple[list[float], list[float]] = ([], [])
-    for targets, sense, found in ((columns, 1.0, out[0]), (upper_columns, -1.0, out[1])):
-        for j in targets:
-            stored = warm.duals.get((int(j), sense > 0))
-            if stored is None or stored[0] != m:
-                found.append(-math.inf * sense)
-                continue
-            y = np.zeros(m)
-            y[stored[1]] = stored[2]
-            objective[j] = sense
-            bound = safe_bound(
-                csc.indptr, csc.indices, csc.data, row_lo, row_hi, objective, y, box_lo, box_hi
-            )  # fmt: skip
-            objective[j] = 0.0
-            found.append(sense * bound)
-    return out
+    order = np.array(list(columns) + list(upper_columns), dtype=np.int64)
+    senses = np.concatenate([np.ones(len(columns)), -np.ones(len(upper_columns))])
+    duals = np.zeros((len(order), m))
+    known = np.zeros(len(order), dtype=bool)
+    for r, j in enumerate(order.tolist()):
+        stored = warm.duals.get((j, bool(senses[r] > 0)))
+        if stored is not None and stored[0] == m:
+            duals[r, stored[1]] = stored[2]
+            known[r] = True
+    bounds = np.full(len(order), -math.inf)
+    safe_bounds_of_columns(
+        csc.indptr, csc.indices, csc.data, row_lo, row_hi, order, senses, duals, 0,
+        len(order), box_lo, box_hi, bounds,
+    )  # fmt: skip
+    bounds = senses * np.where(known, bounds, -math.inf)
+    k = len(columns)
+    return bounds[:k].tolist(), bounds[k:].tolist()
 
 
 def _new_solver(csc: sparse.csc_matrix, row_lo, row_hi, box) -> highspy.Highs:
@@ -373,7 +404,9 @@ def _sequence(
                 stats.optimal += 1
                 basis = solver.getBasis()
                 state = _simplex.active_set(
-                    [int(v) for v in basis.col_status], [int(v) for v in basis.row_status], n
+                    [int(v) for v in basis.col_status],
+                    [int(v) for v in basis.row_status],
+                    n,
                 )
                 if state is not None:
                     inverse = _simplex.inverse_of_active(
@@ -392,14 +425,11 @@ def _sequence(
             csr.indptr, csr.indices, csr.data, lower, upper, ids, side, inverse, order,
             senses, q, stop, KERNEL_ITERATIONS, duals,
         )  # fmt: skip
-        for r in range(q, at):
-            objective[order[r]] = senses[r]
-            bounds[r] = safe_bound(
-                csc.indptr, csc.indices, csc.data, row_lo, row_hi, objective, duals[r],
-                box_lo, box_hi,
-            )  # fmt: skip
-            objective[order[r]] = 0.0
-            warm.duals[int(order[r]), senses[r] > 0] = _sparse(duals[r])
+        safe_bounds_of_columns(
+            csc.indptr, csc.indices, csc.data, row_lo, row_hi, order, senses, duals, q, at,
+            box_lo, box_hi, bounds,
+        )  # fmt: skip
+        _keep_sparse(warm, order, senses, duals, q, at)
         stats.solved += at - q
         stats.optimal += at - q
         q = at

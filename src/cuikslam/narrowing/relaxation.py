@@ -17,11 +17,13 @@ The polytope's rows are built here; :mod:`.polytope` bounds the variables over t
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
 
+from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.graph.encoding import (
     ANGLE,
     KIND,
@@ -37,13 +39,29 @@ from cuikslam.graph.encoding import (
     YA,
     YB,
 )
-from cuikslam.interval import ops as ia
+from cuikslam.interval import ops as _ops
 from cuikslam.interval._periodic import _shift_bounds, periodic_meet_k
 
 END_TANGENTS_ABOVE = 0.3
 """Tangents at the ends of an angle's interval are kept when it is wider than this (rad)."""
 
 __all__ = ["LinearRelaxation", "relax"]
+
+
+class _Unguarded:
+    """The interval operations of :mod:`cuikslam.interval.ops` as the bare NumPy ufuncs
+    that numba compiled, without the check of the rounding mode and numba's argument
+    handling (a few hundred calls per relaxation): :func:`relax` checks the mode once."""
+
+    def __getattr__(self, name: str) -> Callable:
+        op = getattr(_ops, name)
+        op = getattr(op, "__wrapped__", op)
+        op = getattr(op, "ufunc", op)  # numba's compiled NumPy ufunc itself
+        setattr(self, name, op)
+        return op
+
+
+ia = _Unguarded()
 
 
 @dataclass
@@ -69,7 +87,12 @@ class LinearRelaxation:
 
 
 def _point(v: np.ndarray) -> np.ndarray:
-    return np.stack((v, v), axis=-1)
+    """The intervals ``[v, v]`` (one allocation: ``np.stack`` costs a few times more on
+    these small arrays, and a window's relaxation makes a few hundred)."""
+    out = np.empty((*np.shape(v), 2))
+    out[..., 0] = v
+    out[..., 1] = v
+    return out
 
 
 def _trig_range_rows(phi: np.ndarray, use_cos: bool) -> list[tuple[np.ndarray, np.ndarray]]:
@@ -177,6 +200,7 @@ def relax(factors: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> LinearRelaxati
     cos(phi) and sin(phi) (see :meth:`LinearRelaxation.lift`). Factors touching an
     unbounded variable are left out (a relaxation may omit rows).
     """
+    ensure_round_to_nearest()
     n = len(lo)
     box = np.stack([lo, hi], axis=-1)
     used = factors[np.isin(factors[:, KIND], (ODOMETRY, OBSERVATION, RELATIVE, ROTATION))]

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -16,6 +17,8 @@ from cuikslam.budget import expired
 from cuikslam.graph.encoding import KIND, OBSERVATION, ODOMETRY, RELATIVE, ROTATION, TA, TB, XA, XB
 from cuikslam.narrowing._factors import fresh_memory
 from cuikslam.narrowing._propagate import propagate_buffered
+from cuikslam.narrowing.lp_bounds import LpStatistics
+from cuikslam.narrowing.parts import Part, default_threads, partition, run_parts
 from cuikslam.narrowing.polytope import WarmStarts, tighten
 from cuikslam.narrowing.propagation import Arrays, Status
 
@@ -198,6 +201,7 @@ def polytope_rounds(
     progress: Callable[[int, int], None] | None,
     deadline: float | None,
     report: StrengthenReport,
+    threads: int | None = None,
 ) -> tuple[Status, int, bool]:
     """Sweeps of the polytope-hull operator along the chain, forward then backward, until
     they stall.
@@ -206,9 +210,12 @@ def polytope_rounds(
     window starts from what the previous one found. A bound whose last LP moved it by less
     than ``STALE_GAIN`` of its width is *stale*: not solved again until its window's boxes
     have shrunk by ``UNSTALE_SHRINK`` since that window's last LPs, or the next full sweep
-    (every ``FULL_ROUND_EVERY``-th). After each sweep the whole graph is propagated. Returns
-    ``(status, applications, finished)``; ``finished`` is False when the deadline cut the
-    sweeps short (the boxes are then propagated to the fixpoint all the same).
+    (every ``FULL_ROUND_EVERY``-th). On a long log the windows are cut into parts swept
+    concurrently, each on a copy of the bounds, the copies then intersected
+    (:mod:`.parts`; the boxes do not depend on ``threads``: None, as many as
+    :func:`.parts.default_threads`). After each sweep the whole graph is propagated.
+    Returns ``(status, applications, finished)``; ``finished`` is False when the deadline
+    cut the sweeps short (the boxes are then propagated to the fixpoint all the same).
     """
     windows = chain_windows(arrays.factors)
     if not windows:
@@ -218,66 +225,40 @@ def polytope_rounds(
     applications = 0
     targets = np.unique(np.concatenate([w.targets for w in windows]))
     width = _total_width(lo, hi, targets)
-    stale_lo = np.zeros(len(lo), dtype=bool)
-    stale_hi = np.zeros(len(lo), dtype=bool)
+    ranges = partition(len(windows))
+    parts = [
+        Part(r, len(lo), propagate if len(ranges) == 1 else _Propagator(arrays, rtol, max_rounds))
+        for r in ranges
+    ]
     warm = [WarmStarts() for _ in windows]
     signature = np.full(len(windows), -np.inf)
-    total = MAX_LP_ROUNDS * len(windows)
     for round_index in range(MAX_LP_ROUNDS):
         full = round_index % FULL_ROUND_EVERY == 0
-        if full:
-            stale_lo[:] = False
-            stale_hi[:] = False
-        skipped = report.lp.skipped
-        cut = False
-        order = range(len(windows)) if round_index % 2 == 0 else range(len(windows) - 1, -1, -1)
-        for step, w in enumerate(order):
-            window = windows[w]
-            if progress is not None:
-                progress(round_index * len(windows) + step, total)
-            if _signature(lo, hi, window.targets) < signature[w] - UNSTALE_SHRINK:
-                stale_lo[window.targets] = False
-                stale_hi[window.targets] = False
-            reuse = round_index >= REUSE_FROM and len(windows) >= REUSE_MIN_WINDOWS
-            if reuse:
-                lower, upper = window.bounded, window.bounded[::-1]
-            else:
-                lower = window.bounded[~stale_lo[window.bounded]]
-                upper = window.bounded[~stale_hi[window.bounded]][::-1]
-            if lower.size == 0 and upper.size == 0:
-                continue
-            if expired(deadline):
-                cut = True
-                break
-            status, count = propagate(lo, hi, window.indices, LOCAL_SPAN * len(window.indices))
-            applications += count
-            if status is Status.INCONSISTENT:
-                return Status.INCONSISTENT, applications, True
-            old_lo, old_hi = lo[window.targets], hi[window.targets]
-            tightened = tighten(
-                window.rows, lo, hi, lower, warm[w], deadline=deadline,
-                statistics=report.lp, upper_targets=upper, reuse=reuse,
-            )  # fmt: skip
-            if tightened.is_empty:
-                return Status.INCONSISTENT, applications, True
-            with np.errstate(invalid="ignore"):
-                slack = STALE_GAIN * (old_hi - old_lo)
-                moved_lo = (lo[window.targets] - old_lo > slack) | (
-                    np.isinf(slack) & (lo[window.targets] > old_lo)
-                )
-                moved_hi = (old_hi - hi[window.targets] > slack) | (
-                    np.isinf(slack) & (hi[window.targets] < old_hi)
-                )
-            stale_lo[lower] = ~moved_lo[np.searchsorted(window.targets, lower)]
-            stale_hi[upper] = ~moved_hi[np.searchsorted(window.targets, upper)]
-            signature[w] = _signature(lo, hi, window.targets)
+        reuse = round_index >= REUSE_FROM and len(windows) >= REUSE_MIN_WINDOWS
+        sweep = partial(
+            _sweep_part, windows=windows, warm=warm, signature=signature,
+            forward=round_index % 2 == 0, full=full, reuse=reuse, deadline=deadline,
+            progress=_progress(progress, round_index, len(windows), len(parts)),
+        )  # fmt: skip
+        if len(parts) == 1:
+            consistent, empty = sweep(parts[0], lo, hi), False
+        else:
+            if threads is None:  # decided once, before this process adds to the load
+                threads = default_threads()
+            consistent, empty = run_parts(parts, lo, hi, sweep, max(1, int(threads)))
+        for part in parts:
+            report.lp.add(part.lp)
+            part.lp = LpStatistics()
+            applications += part.applications
+            part.applications = 0
+        if not consistent or empty:
+            return Status.INCONSISTENT, applications, True
         report.lp_rounds += 1
-        cut = cut or report.lp.skipped > skipped
         status, count = propagate(lo, hi, everything)
         applications += count
         if status is Status.INCONSISTENT:
             return Status.INCONSISTENT, applications, True
-        if cut:
+        if any(part.cut for part in parts):
             return Status.CONSISTENT, applications, False
         new_width = _total_width(lo, hi, targets)
         if new_width > width * (1.0 - MIN_GAIN):
@@ -286,3 +267,104 @@ def polytope_rounds(
             return Status.CONSISTENT, applications, False
         width = new_width
     return Status.CONSISTENT, applications, True
+
+
+def _progress(
+    progress: Callable[[int, int], None] | None, round_index: int, n_windows: int, n_parts: int
+) -> Callable[[int], None] | None:
+    """The first part's step, reported as the sweeps' progress (the parts advance at about
+    the same pace)."""
+    if progress is None:
+        return None
+    total = MAX_LP_ROUNDS * n_windows
+
+    def report(step: int) -> None:
+        progress(round_index * n_windows + min(step * n_parts, n_windows), total)
+
+    return report
+
+
+def _sweep_part(
+    part: Part,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    *,
+    windows: list[Window],
+    warm: list[WarmStarts],
+    signature: np.ndarray,
+    forward: bool,
+    full: bool,
+    reuse: bool,
+    deadline: float | None,
+    progress: Callable[[int], None] | None,
+) -> bool:
+    """One sweep of ``part``'s windows over ``lo`` / ``hi`` (narrowed in place); False when
+    the graph is proven inconsistent. ``part.cut`` says whether the deadline stopped it."""
+    if full:
+        part.stale_lo[:] = False
+        part.stale_hi[:] = False
+    skipped = part.lp.skipped
+    part.cut = False
+    for step, w in enumerate(part.order(forward)):
+        if progress is not None and part.first:
+            progress(step)
+        visited = _visit(part, windows[w], warm[w], signature, w, lo, hi, reuse, deadline)
+        if visited is None:
+            part.cut = True
+            break
+        if not visited:
+            return False
+    part.cut = part.cut or part.lp.skipped > skipped
+    return True
+
+
+def _visit(
+    part: Part,
+    window: Window,
+    warm: WarmStarts,
+    signature: np.ndarray,
+    w: int,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    reuse: bool,
+    deadline: float | None,
+) -> bool | None:
+    """One window's propagation and LPs, narrowing ``lo`` / ``hi`` in place with the
+    ``part``'s buffers and stale marks. False: the graph is proven inconsistent; None: the
+    deadline passed before the window's LPs."""
+    stale_lo, stale_hi = part.stale_lo, part.stale_hi
+    if _signature(lo, hi, window.targets) < signature[w] - UNSTALE_SHRINK:
+        stale_lo[window.targets] = False
+        stale_hi[window.targets] = False
+    if reuse:
+        lower, upper = window.bounded, window.bounded[::-1]
+    else:
+        lower = window.bounded[~stale_lo[window.bounded]]
+        upper = window.bounded[~stale_hi[window.bounded]][::-1]
+    if lower.size == 0 and upper.size == 0:
+        return True
+    if expired(deadline):
+        return None
+    status, count = part.propagate(lo, hi, window.indices, LOCAL_SPAN * len(window.indices))
+    part.applications += count
+    if status is Status.INCONSISTENT:
+        return False
+    old_lo, old_hi = lo[window.targets], hi[window.targets]
+    tightened = tighten(
+        window.rows, lo, hi, lower, warm, deadline=deadline, statistics=part.lp,
+        upper_targets=upper, reuse=reuse,
+    )  # fmt: skip
+    if tightened.is_empty:
+        return False
+    with np.errstate(invalid="ignore"):
+        slack = STALE_GAIN * (old_hi - old_lo)
+        moved_lo = (lo[window.targets] - old_lo > slack) | (
+            np.isinf(slack) & (lo[window.targets] > old_lo)
+        )
+        moved_hi = (old_hi - hi[window.targets] > slack) | (
+            np.isinf(slack) & (hi[window.targets] < old_hi)
+        )
+    stale_lo[lower] = ~moved_lo[np.searchsorted(window.targets, lower)]
+    stale_hi[upper] = ~moved_hi[np.searchsorted(window.targets, upper)]
+    signature[w] = _signature(lo, hi, window.targets)
+    return True

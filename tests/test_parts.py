@@ -1,0 +1,123 @@
+"""The ``lp`` sweeps cut into parts (:mod:`cuikslam.narrowing.parts`): the same boxes for
+any number of threads, and the truth inside them on random true worlds.
+
+The parts start at ``MIN_PART_WINDOWS`` windows each (200 poses); the tests lower it so
+that short logs are cut too.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+
+from cuikslam.graph import KinematicGraph
+from cuikslam.narrowing import parts as parts_module
+from cuikslam.narrowing import propagate
+from cuikslam.narrowing import sweeps as sweeps_module
+from cuikslam.narrowing.consistency import StrengthenReport, strengthen
+from cuikslam.narrowing.parts import default_threads, partition
+from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, Arrays
+from cuikslam.options import SolveOptions
+from cuikslam.simulate import simulate_random_world
+from cuikslam.solver import solve
+from worlds import World, log_violations, truth_misses, worlds
+
+
+@pytest.mark.parametrize("n_windows", [1, 7, 79, 80, 81, 199, 2000])
+def test_partition_covers_the_windows_in_order(n_windows: int) -> None:
+    ranges = partition(n_windows)
+    assert [w for r in ranges for w in r] == list(range(n_windows))
+    expected = max(1, min(parts_module.PARTS, n_windows // parts_module.MIN_PART_WINDOWS))
+    assert len(ranges) == expected
+    assert max(len(r) for r in ranges) - min(len(r) for r in ranges) <= 1
+
+
+def test_default_threads_leave_busy_cores_alone(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(parts_module.os, "sched_getaffinity", lambda _: {0, 1})
+    for load, expected in ((0.0, 2), (0.4, 2), (1.0, 1), (1.6, 1), (7.0, 1)):
+        monkeypatch.setattr(parts_module.os, "getloadavg", lambda load=load: (load, 0.0, 0.0))
+        assert default_threads() == expected, load
+
+
+def test_threads_must_be_positive() -> None:
+    with pytest.raises(ValueError, match="threads"):
+        SolveOptions(threads=0)
+
+
+def test_the_command_line_sets_the_threads() -> None:
+    from cuikslam.cli.main import build_parser
+
+    parser = build_parser()
+    assert parser.parse_args(["solve", "trip.jsonl"]).threads == SolveOptions().threads is None
+    assert parser.parse_args(["solve", "trip.jsonl", "--threads", "2"]).threads == 2
+    with pytest.raises(SystemExit):
+        parser.parse_args(["solve", "trip.jsonl", "--threads", "0"])
+
+
+def _lp(graph: KinematicGraph, threads: int) -> tuple[np.ndarray, np.ndarray, StrengthenReport]:
+    fixpoint = propagate(graph, rtol=DEFAULT_RTOL)
+    lo, hi = fixpoint.lo.copy(), fixpoint.hi.copy()
+    report = StrengthenReport()
+    result = strengthen(
+        Arrays.of(graph), lo, hi, "lp", DEFAULT_RTOL, DEFAULT_ROUNDS, report=report,
+        threads=threads,
+    )  # fmt: skip
+    assert not result.is_empty
+    return lo, hi, report
+
+
+def test_same_boxes_for_any_number_of_threads(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Bit for bit, and the same LP counts: the parts' copies are merged by max / min."""
+    monkeypatch.setattr(parts_module, "MIN_PART_WINDOWS", 3)
+    used = []
+    run_parts = parts_module.run_parts
+
+    def spy(parts, *args):
+        used.append(len(parts))
+        return run_parts(parts, *args)
+
+    monkeypatch.setattr(sweeps_module, "run_parts", spy)
+    log, _ = simulate_random_world(seed=4, n_poses=60)
+    graph = KinematicGraph.from_log(log)
+    runs = [_lp(graph, threads) for threads in (1, 2, 2, 3)]
+    assert used and set(used) == {2}  # the parts ran, two of them
+    for lo, hi, report in runs[1:]:
+        np.testing.assert_array_equal(lo, runs[0][0])
+        np.testing.assert_array_equal(hi, runs[0][1])
+        assert report.lp == runs[0][2].lp
+        assert report.lp_rounds == runs[0][2].lp_rounds
+
+
+def test_parts_stay_close_to_one_part(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Cutting the chain loses only what crosses the cut within a sweep: the total width of
+    the poses stays within 5 % of the single part's (the issue's tightness claim)."""
+    log, _ = simulate_random_world(seed=4, n_poses=60)
+    graph = KinematicGraph.from_log(log)
+    lo1, hi1, _ = _lp(graph, 1)
+    monkeypatch.setattr(parts_module, "MIN_PART_WINDOWS", 3)
+    lo2, hi2, _ = _lp(graph, 2)
+    poses = graph.pose_boxes(lo1, hi1), graph.pose_boxes(lo2, hi2)
+    widths = [b[..., 1] - b[..., 0] for b in poses]
+    finite = np.isfinite(widths[0]) & np.isfinite(widths[1])
+    assert finite.sum() > 0.5 * finite.size
+    one, two = widths[0][finite].sum(), widths[1][finite].sum()
+    assert two <= 1.05 * one, (one, two)
+
+
+HEALTH = [HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large]
+
+
+@settings(max_examples=25, deadline=None, derandomize=True, suppress_health_check=HEALTH)
+@given(world=worlds(poses=(12, 30), max_observations=40))
+def test_parts_keep_the_truth(world: World) -> None:
+    """Every box holds the truth when the windows are cut into parts run on two threads."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(parts_module, "MIN_PART_WINDOWS", 1)
+        log = world.log("all")
+        assert log_violations(log, world.truth) == []
+        solution = solve(log, consistency="lp", certify_limit=0, time_budget=None, threads=2)
+    assert not solution.refuted, solution.messages
+    h = solution.hypotheses[0]
+    assert h.consistency == "lp"
+    assert truth_misses(h, world.truth, world.named_ids("all")) == []
