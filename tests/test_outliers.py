@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field, replace
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, assume, given, note, settings
 from hypothesis import strategies as st
@@ -372,3 +373,57 @@ def test_a_heading_placed_anew_on_the_circle_is_not_met_in_its_old_frame() -> No
         solution.best, list(range(7)), [(0, 0, 0)] * 7, {"L0": (0, 1), "L3": (0, 1)}
     )
     assert truth.misses == []
+
+
+def _three_posts(declaration: str) -> Log:
+    """Pose 0 somewhere in a 40 m box sees posts A (0, 0), B (10, 0), C (5, 8.66) by range
+    only; the truth (5, 2.887) is 5.77 m from each, but C's range says 3.0-3.2 m."""
+    post = '{"type": "landmark", "id": "%s", "class": "post", "x": [%s, %s], "y": [%s, %s]}'
+    seen = '{"type": "observation", "pose": 0, "class": "post", "landmark": "%s", "range": %s}'
+    return _log(
+        '{"type": "prior", "pose": 0, "x": [-20, 20], "y": [-20, 20], "theta": [-4, 4]}',
+        declaration,
+        post % ("A", 0, 0, 0, 0),
+        post % ("B", 10, 10, 0, 0),
+        post % ("C", 5, 5, 8.66, 8.66),
+        seen % ("A", "[5.7, 5.85]"),
+        seen % ("B", "[5.7, 5.85]"),
+        seen % ("C", "[3.0, 3.2]"),
+    )
+
+
+def test_an_observation_in_every_surviving_set_is_proven() -> None:
+    """Any two of the three ranges but A and B are incompatible, so C is wrong: proven with
+    "1 per pose" (the sets of one outlier of the pose's block) and with "1 in all"."""
+    for declaration in ('{"at_most": 1, "window": 1}', '{"at_most": 1}'):
+        log = _three_posts('{"type": "outliers", ' + declaration[1:])
+        solution = solve(log, consistency="hull", time_budget=None)
+        assert [p["landmark"] for p in solution.outliers["proven"]] == ["C"]
+        report = check_truth(solution.best, [0], [("5", "2.887", "0")], None)
+        assert report.misses == []
+        box = solution.best.pose(0)  # A and B alone: x in [4.15, 5.85], y +-2.9 (a mirror)
+        assert box[0, 1] - box[0, 0] < 2 and box[1, 1] - box[1, 0] < 9  # the prior: 40
+    assert solution.statistics.get("outlier_sets", 0) == 0  # no blocks without a window
+
+
+def test_the_sets_of_a_block_are_tried() -> None:
+    from cuikslam.graph.kinematic_graph import KinematicGraph
+    from cuikslam.narrowing.outlier_blocks import BlockBranching, branch_on_blocks
+    from cuikslam.narrowing.propagation import Arrays, narrow
+
+    log = _three_posts('{"type": "outliers", "at_most": 1, "window": 1}')
+    graph = KinematicGraph.from_log(log)
+    arrays = Arrays.of(graph)
+    members = np.flatnonzero(arrays.factors[:, 0] == 1)
+    arrays.factors[members, 0] = -1
+    lo, hi = graph.domains()
+    narrow(arrays, lo, hi)
+    report = BlockBranching()
+    status = branch_on_blocks(
+        arrays, lo, hi, members, np.zeros(3, dtype=np.int64), np.array([1]), 1e-3, 1,
+        report=report,
+    )  # fmt: skip
+    assert status.name == "CONSISTENT" and report.sets == 3 and report.proven == [2]
+    assert (arrays.factors[members, 0] == -1).all()  # restored
+    x, y = graph.pose_index(0), graph.pose_index(0) + 1
+    assert lo[x] <= 5 <= hi[x] and lo[y] <= 2.887 <= hi[y] and hi[x] - lo[x] < 2

@@ -226,6 +226,10 @@ def _solve_known(
         )  # fmt: skip
         report = relaxed.strengthen
         outliers = outliers_to_json(log, relaxed)
+        branching = {
+            "outlier_blocks": relaxed.branched_blocks,
+            "outlier_sets": relaxed.branched_sets,
+        }
     else:
         result = propagate(graph, rtol=rtol)
     if not result.is_empty and outliers is None:
@@ -254,6 +258,7 @@ def _solve_known(
     messages = []
     if outliers is not None:
         statistics["outliers_proven"] = len(outliers["proven"])
+        statistics.update(branching)
         messages.extend(outlier_messages(outliers))
     if report.budget_exhausted and not result.is_empty:
         messages.append(budget_message(consistency, report))

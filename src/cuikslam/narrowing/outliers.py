@@ -16,7 +16,10 @@ outliers than declared is a proof that the log breaks its declaration.
 
 The stronger levels (``lp``, ``lp-split``) see only the ordinary factors: the members are
 left out of the polytope (sound, only less tight), and the relaxed intersection runs again
-after them.
+after them. With a bound per block of poses, each block's possible sets of outliers are
+then enumerated (:mod:`.outlier_blocks`: the hull over the sets that survive, and a proof
+for an observation in every one of them), which restores much of what the per-variable
+rule loses on variables seen by few observations.
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ from cuikslam.narrowing._relaxed import (
     relaxed_meet,
 )
 from cuikslam.narrowing.consistency import StrengthenReport, strengthen
+from cuikslam.narrowing.outlier_blocks import BlockBranching, branch_on_blocks
 from cuikslam.narrowing.propagation import Arrays, Propagation, Status, narrow
 
 __all__ = ["NO_LIMIT", "OutlierScope", "RelaxedReport", "narrow_with_outliers"]
@@ -43,6 +47,8 @@ NO_LIMIT = 2**40
 """The allowance of a scope the declaration does not bound."""
 MEMBER_ROUNDS = 8
 """Local rounds of a member's operator when it computes its contraction."""
+BRANCH_ROUNDS = 3
+"""Rounds of branching on the blocks per pass at most (each until it gains under 1 %)."""
 MAX_SWEEPS = 400
 """Relaxed intersections per fixpoint at most (stopping earlier is sound, only wider)."""
 
@@ -75,6 +81,10 @@ class RelaxedReport:
     """Narrowings run (one, plus one per round of newly proven outliers)."""
     sweeps: int = 0
     """Relaxed intersections applied, over all passes."""
+    branched_blocks: int = 0
+    """Blocks of poses whose sets of outliers were enumerated (:mod:`.outlier_blocks`)."""
+    branched_sets: int = 0
+    """Sets of outliers tried in those blocks."""
     strengthen: StrengthenReport = field(default_factory=StrengthenReport)
     """The stronger level's report (of its last run)."""
 
@@ -135,19 +145,23 @@ def narrow_with_outliers(
         status, count = _fixpoint(hard, meet, lo, hi, None, rtol, max_rounds, report)
         applications += count
         if status is not Status.INCONSISTENT and level != "hull" and not expired(deadline):
-            strong = strengthen(
-                hard, lo, hi, level, rtol, max_rounds, deadline=deadline, report=report.strengthen
+            status, count = _strengthen(
+                hard, meet, lo, hi, level, rtol, max_rounds, deadline, report
             )
-            applications += strong.applications
-            status = strong.status
-            if status is not Status.INCONSISTENT:
-                status, count = _fixpoint(hard, meet, lo, hi, [], rtol, max_rounds, report)
-                applications += count
+            applications += count
+        branched: list[int] = []
+        if status is not Status.INCONSISTENT and scope.per_block < NO_LIMIT:
+            status, branched, count = _branch(
+                hard, meet, lo, hi, scope, relaxed, np.minimum(block_left, left), rtol,
+                max_rounds, deadline, report,
+            )  # fmt: skip
+            applications += count
         if status is Status.INCONSISTENT:
             report.exceeded = True
             return Propagation(lo, hi, Status.INCONSISTENT, applications)
         empty = np.zeros(n, dtype=np.bool_)
         empty[relaxed] = meet.contract(lo, hi, write=False)
+        empty[branched] = True
         new = np.flatnonzero(empty)
         if new.size == 0:
             return Propagation(lo, hi, Status.CONSISTENT, applications)
@@ -228,6 +242,77 @@ class _RelaxedMeet:
             self.rtol, self.changed,
         )  # fmt: skip
         return status != RELAXED_INCONSISTENT, self.variables[self.changed]
+
+
+def _strengthen(
+    hard: Arrays,
+    meet: _RelaxedMeet,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    level: str,
+    rtol: float,
+    max_rounds: int,
+    deadline: float | None,
+    report: RelaxedReport,
+) -> tuple[Status, int]:
+    """The stronger level on the ordinary factors, then the relaxed fixpoint again."""
+    strong = strengthen(
+        hard, lo, hi, level, rtol, max_rounds, deadline=deadline, report=report.strengthen
+    )
+    if strong.status is Status.INCONSISTENT:
+        return strong.status, strong.applications
+    status, count = _fixpoint(hard, meet, lo, hi, [], rtol, max_rounds, report)
+    return status, strong.applications + count
+
+
+def _branch(
+    hard: Arrays,
+    meet: _RelaxedMeet,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    scope: OutlierScope,
+    relaxed: np.ndarray,
+    allowance: np.ndarray,
+    rtol: float,
+    max_rounds: int,
+    deadline: float | None,
+    report: RelaxedReport,
+) -> tuple[Status, list[int], int]:
+    """Branch on the outliers of each block (:mod:`.outlier_blocks`), then narrow again.
+
+    Returns the status, the members proven outliers and the operator applications.
+    """
+    which = np.flatnonzero(relaxed)
+    proven: set[int] = set()
+    applications = 0
+    status = Status.CONSISTENT
+    for _ in range(BRANCH_ROUNDS):
+        branching = BlockBranching()
+        before = _width(lo, hi)
+        status = branch_on_blocks(
+            hard, lo, hi, scope.members[which], scope.block[which], allowance, rtol,
+            max_rounds, deadline, branching,
+        )  # fmt: skip
+        report.branched_blocks += branching.blocks
+        report.branched_sets += branching.sets
+        applications += branching.applications
+        proven.update(int(which[i]) for i in branching.proven)
+        if status is Status.INCONSISTENT:
+            return status, [], applications
+        after = _width(lo, hi)
+        if after == before:
+            break
+        status, count = _fixpoint(hard, meet, lo, hi, None, rtol, max_rounds, report)
+        applications += count
+        if status is Status.INCONSISTENT or proven or _width(lo, hi) > 0.99 * before:
+            break
+    return status, sorted(proven), applications
+
+
+def _width(lo: np.ndarray, hi: np.ndarray) -> float:
+    """The sum of the finite widths (a measure of progress, not of soundness)."""
+    widths = hi - lo
+    return float(widths[np.isfinite(widths)].sum())
 
 
 def _fixpoint(
