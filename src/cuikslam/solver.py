@@ -229,6 +229,7 @@ def _solve_known(
         branching = {
             "outlier_blocks": relaxed.branched_blocks,
             "outlier_sets": relaxed.branched_sets,
+            "outlier_blocks_skipped": relaxed.skipped_blocks,
         }
     else:
         result = propagate(graph, rtol=rtol)

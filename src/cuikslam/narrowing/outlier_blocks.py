@@ -34,10 +34,13 @@ MAX_TOTAL = 20_000
 
 
 class BlockBranching:
-    """What :func:`branch_on_blocks` did: blocks branched, sets tried and proven outliers."""
+    """What :func:`branch_on_blocks` did: blocks branched and skipped, sets tried, proven
+    outliers."""
 
     def __init__(self) -> None:
         self.blocks = 0
+        self.skipped = 0
+        """Blocks left to the relaxed rule alone: too many sets, or the limits reached."""
         self.sets = 0
         self.proven: list[int] = []
         self.applications = 0
@@ -94,10 +97,15 @@ def branch_on_blocks(
                 continue
             p = int(allowance[block[group[0]]])
             k = group.size
-            if p <= 0 or p >= k or math.comb(k, p) > MAX_SETS:
+            if p <= 0 or p >= k:
                 continue
-            if report.sets + math.comb(k, p) > MAX_TOTAL or expired(deadline):
-                break
+            if (
+                math.comb(k, p) > MAX_SETS
+                or report.sets + math.comb(k, p) > MAX_TOTAL
+                or expired(deadline)
+            ):
+                report.skipped += 1
+                continue
             status = _branch(hard, lo, hi, members[group], p, rtol, max_rounds, report, group)
             if status is Status.INCONSISTENT:
                 return status

@@ -85,6 +85,9 @@ class RelaxedReport:
     """Blocks of poses whose sets of outliers were enumerated (:mod:`.outlier_blocks`)."""
     branched_sets: int = 0
     """Sets of outliers tried in those blocks."""
+    skipped_blocks: int = 0
+    """Blocks left to the relaxed rule alone (too many sets, or out of time), at most in a
+    round."""
     strengthen: StrengthenReport = field(default_factory=StrengthenReport)
     """The stronger level's report (of its last run)."""
 
@@ -295,6 +298,7 @@ def _branch(
         )  # fmt: skip
         report.branched_blocks += branching.blocks
         report.branched_sets += branching.sets
+        report.skipped_blocks = max(report.skipped_blocks, branching.skipped)
         applications += branching.applications
         proven.update(int(which[i]) for i in branching.proven)
         if status is Status.INCONSISTENT:
