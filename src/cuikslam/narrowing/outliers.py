@@ -14,12 +14,13 @@ a member whose scope has no allowance left cannot be an outlier and becomes an o
 factor; then everything is narrowed again, until no new outlier is proven. More proven
 outliers than declared is a proof that the log breaks its declaration.
 
-The stronger levels (``lp``, ``lp-split``) see only the ordinary factors: the members are
-left out of the polytope (sound, only less tight), and the relaxed intersection runs again
-after them. With a bound per block of poses, each block's possible sets of outliers are
-then enumerated (:mod:`.outlier_blocks`: the hull over the sets that survive, and a proof
-for an observation in every one of them), which restores much of what the per-variable
-rule loses on variables seen by few observations.
+With a bound per block of poses, each block's possible sets of outliers are then
+enumerated (:mod:`.outlier_blocks`: the hull over the sets that survive, and a proof for an
+observation in every one of them), which restores much of what the per-variable rule
+loses on variables seen by few observations; it runs before the stronger level, which has
+the time budget. The stronger levels (``lp``, ``lp-split``) see only the ordinary factors:
+the members are left out of the polytope (sound, only less tight), and the relaxed
+intersection runs again after them.
 """
 
 from __future__ import annotations
@@ -147,17 +148,17 @@ def narrow_with_outliers(
         meet = _RelaxedMeet(arrays.factors, scope, relaxed, left, block_left, rtol)
         status, count = _fixpoint(hard, meet, lo, hi, None, rtol, max_rounds, report)
         applications += count
-        if status is not Status.INCONSISTENT and level != "hull" and not expired(deadline):
-            status, count = _strengthen(
-                hard, meet, lo, hi, level, rtol, max_rounds, deadline, report
-            )
-            applications += count
         branched: list[int] = []
         if status is not Status.INCONSISTENT and scope.per_block < NO_LIMIT:
             status, branched, count = _branch(
                 hard, meet, lo, hi, scope, relaxed, np.minimum(block_left, left), rtol,
                 max_rounds, deadline, report,
             )  # fmt: skip
+            applications += count
+        if status is not Status.INCONSISTENT and level != "hull" and not expired(deadline):
+            status, count = _strengthen(
+                hard, meet, lo, hi, level, rtol, max_rounds, deadline, report
+            )
             applications += count
         if status is Status.INCONSISTENT:
             report.exceeded = True
