@@ -14,9 +14,10 @@ a member whose scope has no allowance left cannot be an outlier and becomes an o
 factor; then everything is narrowed again, until no new outlier is proven. More proven
 outliers than declared is a proof that the log breaks its declaration.
 
-With a bound per block of poses, each block's possible sets of outliers are then
-enumerated (:mod:`.outlier_blocks`: the hull over the sets that survive, and a proof for an
-observation in every one of them), which restores much of what the per-variable rule
+The possible sets of outliers are then enumerated (:mod:`.outlier_blocks`: the hull over
+the sets that survive, and a proof for an observation in every one of them), in each block
+of poses with a bound per block, and in the whole log when it has few enough sets (C(k, q)
+at most ``outlier_blocks.MAX_SETS``). This restores much of what the per-variable rule
 loses on variables seen by few observations; it runs before the stronger level, which has
 the time budget. The stronger levels (``lp``, ``lp-split``) see only the ordinary factors:
 the members are left out of the polytope (sound, only less tight), and the relaxed
@@ -149,9 +150,9 @@ def narrow_with_outliers(
         status, count = _fixpoint(hard, meet, lo, hi, None, rtol, max_rounds, report)
         applications += count
         branched: list[int] = []
-        if status is not Status.INCONSISTENT and scope.per_block < NO_LIMIT:
+        if status is not Status.INCONSISTENT and relaxed.any():
             status, branched, count = _branch(
-                hard, meet, lo, hi, scope, relaxed, np.minimum(block_left, left), rtol,
+                hard, meet, lo, hi, scope, relaxed, left, np.minimum(block_left, left), rtol,
                 max_rounds, deadline, report,
             )  # fmt: skip
             applications += count
@@ -276,27 +277,37 @@ def _branch(
     hi: np.ndarray,
     scope: OutlierScope,
     relaxed: np.ndarray,
+    left: int,
     allowance: np.ndarray,
     rtol: float,
     max_rounds: int,
     deadline: float | None,
     report: RelaxedReport,
 ) -> tuple[Status, list[int], int]:
-    """Branch on the outliers of each block (:mod:`.outlier_blocks`), then narrow again.
+    """Branch on the outliers of the whole log (when few enough sets) and of each block
+    (:mod:`.outlier_blocks`), then narrow again.
 
     Returns the status, the members proven outliers and the operator applications.
     """
     which = np.flatnonzero(relaxed)
+    scopes = []  # (block of each member, allowance of each block)
+    if left < NO_LIMIT:
+        scopes.append((np.zeros(which.size, dtype=np.int64), np.array([left])))
+    if scope.per_block < NO_LIMIT:
+        scopes.append((scope.block[which], allowance))
     proven: set[int] = set()
     applications = 0
     status = Status.CONSISTENT
     for _ in range(BRANCH_ROUNDS):
         branching = BlockBranching()
         before = _width(lo, hi)
-        status = branch_on_blocks(
-            hard, lo, hi, scope.members[which], scope.block[which], allowance, rtol,
-            max_rounds, deadline, branching,
-        )  # fmt: skip
+        for blocks, allowed in scopes:
+            status = branch_on_blocks(
+                hard, lo, hi, scope.members[which], blocks, allowed, rtol, max_rounds,
+                deadline, branching,
+            )  # fmt: skip
+            if status is Status.INCONSISTENT:
+                break
         report.branched_blocks += branching.blocks
         report.branched_sets += branching.sets
         report.skipped_blocks = max(report.skipped_blocks, branching.skipped)
