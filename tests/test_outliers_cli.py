@@ -174,3 +174,25 @@ def test_calibrate_check_says_whether_the_declaration_holds(tmp_path: Path) -> N
         "the worst block (BROKEN): the guarantee does not hold"
     ) in result.stdout
     assert json.loads((tmp_path / "c.json").read_text())["declaration_holds"] is False
+
+
+def test_import_mrclam_declares_outliers(tmp_path: Path, capsys) -> None:
+    from cuikslam.cli.main import main
+    from cuikslam.log import read_log_file
+    from test_mrclam import write_dataset
+
+    folder = write_dataset(tmp_path / "d")
+    out = tmp_path / "r.jsonl"
+    base = ["import", "mrclam", str(folder), "--robot", "1", "-o", str(out), "-q"]
+    assert main([*base, "--outliers", "2", "--outliers-window", "1", "5"]) == 0
+    log = read_log_file(out)
+    assert [(b.at_most, b.window, b.line) for b in log.outlier_bounds] == [(2, None, 1), (1, 5, 2)]
+    from cuikslam.solver import solve
+
+    solution = solve(log, consistency="hull", time_budget=None)  # and it solves with them
+    assert solution.outliers["declared"][1] == {"at_most": 1, "window": 5, "line": 2}
+    capsys.readouterr()
+    assert main([*base, "--unknown", "--outliers", "2"]) == 2
+    assert "--outliers needs known correspondence" in capsys.readouterr().err
+    assert main([*base, "--outliers-window", "1", "0"]) == 2
+    assert "W must be at least 1 pose" in capsys.readouterr().err
