@@ -121,3 +121,20 @@ def test_parts_keep_the_truth(world: World) -> None:
     h = solution.hypotheses[0]
     assert h.consistency == "lp"
     assert truth_misses(h, world.truth, world.named_ids("all")) == []
+
+
+def test_no_lp_depends_on_the_clock_without_a_deadline(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without a deadline an LP has no time limit (the iteration limit bounds it): a busy
+    machine cannot stop one early and change a bound. With the limit cut to nothing, the
+    boxes and counts stay those of a normal run."""
+    from cuikslam.narrowing import lp_bounds
+
+    log, _ = simulate_random_world(seed=4, n_poses=30)
+    graph = KinematicGraph.from_log(log)
+    lo, hi, report = _lp(graph, 1)
+    monkeypatch.setattr(lp_bounds, "LP_TIME_LIMIT", 0.0)
+    lo2, hi2, report2 = _lp(graph, 1)
+    assert report2.lp.limit_hits == 0
+    assert report2.lp == report.lp
+    np.testing.assert_array_equal(lo2, lo)
+    np.testing.assert_array_equal(hi2, hi)

@@ -138,7 +138,7 @@ def strengthen(
         A :func:`time.perf_counter` value: no LP starts after it, and running LPs stop (at
         most ``lp_bounds.LP_TIME_LIMIT`` later). The boxes are then whatever sound
         narrowing reached, propagated back to the fixpoint. None: no time limit (each LP
-        still has its own iteration and time limits).
+        still has its own iteration limit, and no time limit).
     report : StrengthenReport, optional
         Filled in with the level reached and LP counts.
     threads : int, optional

@@ -8,10 +8,12 @@ is never trusted: a wrong, inaccurate or unfinished LP can only weaken a bound.
 
 Every LP has a budget: an iteration limit (a multiple of its size; a dual simplex that
 cycles on a degenerate LP otherwise never stops, which is what hung ``lp-split`` on a log
-with nanometre odometry) and a time limit (at most ``LP_TIME_LIMIT``, less when the
-caller's deadline is nearer). An LP that stops on a limit still gives the safe bound of
-whatever multipliers it has; its warm-start basis is dropped, and an LP that was started
-from a previous basis and did not reach an optimum is solved once more from scratch.
+with nanometre odometry) and, when the caller has a deadline, a time limit (at most
+``LP_TIME_LIMIT``, less when the deadline is nearer; without a deadline no LP depends on
+the clock, so the boxes do not depend on the machine's load). An LP that stops on a
+limit still gives the safe bound of whatever multipliers it has; its warm-start basis is
+dropped, and an LP that was started from a previous basis and did not reach an optimum is
+solved once more from scratch.
 
 The LPs of one call differ only in their cost, so after HiGHS's first optimum the others
 are solved by a compiled primal simplex (:mod:`._simplex`) from the last optimum: on these
@@ -48,7 +50,8 @@ __all__ = [
 ]
 
 LP_TIME_LIMIT = 0.5
-"""Seconds one LP may take at most (a typical one takes a few milliseconds)."""
+"""Seconds one LP may take at most when the caller has a deadline (a typical one takes a
+few milliseconds)."""
 LP_ITERATIONS_PER_SIZE = 10
 """Simplex iterations one LP may take, per row and column (typical: about one third)."""
 LP_MIN_ITERATIONS = 1000
@@ -449,9 +452,15 @@ def _sequence(
 
 
 def _run(solver: highspy.Highs, deadline: float | None, stats: LpStatistics) -> object:
-    """Run one LP within its limits (HiGHS's time limit counts the instance's total time)."""
-    allowed = min(LP_TIME_LIMIT, max(remaining(deadline), 1e-3))
-    solver.setOptionValue("time_limit", solver.getRunTime() + allowed)
+    """Run one LP within its limits (HiGHS's time limit counts the instance's total time).
+
+    Without a deadline there is no time limit, only the iteration limit: a bound then does
+    not depend on how busy the machine is, and a run gives the same boxes every time."""
+    if deadline is None:
+        solver.setOptionValue("time_limit", highspy.kHighsInf)
+    else:
+        allowed = min(LP_TIME_LIMIT, max(remaining(deadline), 1e-3))
+        solver.setOptionValue("time_limit", solver.getRunTime() + allowed)
     solver.run()
     stats.solved += 1
     return solver.getModelStatus()
