@@ -427,3 +427,31 @@ def test_the_sets_of_a_block_are_tried() -> None:
     assert (arrays.factors[members, 0] == -1).all()  # restored
     x, y = graph.pose_index(0), graph.pose_index(0) + 1
     assert lo[x] <= 5 <= hi[x] and lo[y] <= 2.887 <= hi[y] and hi[x] - lo[x] < 2
+
+
+def test_a_witness_leaves_out_only_proven_outliers() -> None:
+    """Proven outlier: the rest is proven consistent by a witness. Two sightings that
+    disagree with neither proven wrong: no witness can meet both, none is claimed."""
+    log = _log(
+        PRIOR,
+        '{"type": "outliers", "at_most": 1}',
+        MARK,
+        '{"type": "odometry", "from": 0, "to": 1, "turn": [-0.01, 0.01], "distance": [1, 1.1]}',
+        _sighting(0, (4.8, 5.2)),
+        _sighting(1, (9.0, 9.5)),
+    )
+    solution = solve(log, consistency="hull", time_budget=None)
+    assert solution.best.status == "proven consistent"
+    assert any("leaves out the 1 proven outlier" in m for m in solution.messages)
+    move = '{"type": "odometry", "from": 0, "to": 1, "turn": [0, 0], "distance": [1, 1]}'
+    seen = (
+        '{"type": "observation", "pose": %d, "class": "post", "landmark": "B", '
+        '"range": %s, "bearing": [-0.01, 0.01]}'
+    )
+    log = _log(
+        PRIOR, '{"type": "outliers", "at_most": 1}', move, seen % (0, "[2, 2.1]"),
+        seen % (1, "[3, 3.1]"),
+    )  # fmt: skip
+    solution = solve(log, consistency="hull", time_budget=2)  # the witness search: 2 s
+    assert solution.outliers["proven"] == [] and len(solution.hypotheses) == 1
+    assert solution.best.status != "proven consistent"

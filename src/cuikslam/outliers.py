@@ -11,6 +11,8 @@ proof (no solution inside a box that holds the truth).
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -18,11 +20,20 @@ import numpy as np
 from cuikslam.errors import InputFileError
 from cuikslam.graph.encoding import KIND, OBSERVATION
 from cuikslam.graph.kinematic_graph import KinematicGraph
-from cuikslam.log.records import Log, Observation, Odometry, PosePrior, RelativePose
+from cuikslam.log.records import (
+    Log,
+    Observation,
+    Odometry,
+    OutlierBound,
+    PosePrior,
+    RelativePose,
+)
 from cuikslam.narrowing.outliers import NO_LIMIT, OutlierScope, RelaxedReport
+from cuikslam.results.solution import Solution
 
 __all__ = [
     "LISTED",
+    "certify_without_outliers",
     "check_declaration",
     "outlier_messages",
     "outlier_scope",
@@ -174,3 +185,51 @@ def check_declaration(log: Log, outside: list[int], moves_outside: int = 0) -> t
         holds = False
     verdict = "the declaration holds" if holds else "the guarantee does not hold"
     return holds, f"declared outliers: {'; '.join(parts)}: {verdict}"
+
+
+def certify_without_outliers(
+    log: Log, solution: Solution, certify: Callable[..., Any], deadline: float | None
+) -> None:
+    """Try to prove the best hypothesis consistent with the proven outliers left out.
+
+    A verified point that satisfies every constraint but those of the proven outliers
+    (fewer than declared, or the solve would have said so) is a world that meets the
+    declaration: the hypothesis becomes *proven consistent*, its witness that point. The
+    witness search (``certify``, :func:`cuikslam.hypotheses.witness.certify`) runs on the
+    log without the proven outliers; an unproven outlier left in it makes the search fail,
+    never a wrong proof. Not tried when a landmark is seen only by proven outliers.
+    """
+    if not solution.hypotheses or solution.outliers is None:
+        return
+    proven = {p["observation"] for p in solution.outliers["proven"]}
+    records = []
+    k = -1
+    for record in log.records:
+        if isinstance(record, Observation):
+            k += 1
+            if k in proven:
+                continue
+        if not isinstance(record, OutlierBound):
+            records.append(record)
+    reduced = Log(records=records, path=log.path)
+    best = solution.hypotheses[0]
+    named = {o.landmark for o in reduced.observations} | {
+        p.landmark for p in reduced.landmark_priors
+    }
+    if not set(best.landmark_ids) <= named:
+        solution.messages.append(
+            "not certified: a landmark is seen only by proven outliers, so the hypothesis "
+            "stays 'not refuted'"
+        )
+        return
+    trial = replace(best, assignment=[a for i, a in enumerate(best.assignment) if i not in proven])
+    alone = replace(solution, hypotheses=[trial], messages=[], statistics={}, timings={})
+    certify(reduced, alone, deadline=deadline)
+    best.status, best.witness = trial.status, trial.witness
+    solution.statistics.update(alone.statistics)
+    solution.messages.extend(alone.messages)
+    if proven and best.witness is not None:
+        solution.messages.append(
+            f"the witness leaves out the {len(proven)} proven outlier(s) and meets every "
+            "other constraint"
+        )

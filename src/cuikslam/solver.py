@@ -23,7 +23,13 @@ from cuikslam.narrowing.consistency import StrengthenReport, resolve_level, stre
 from cuikslam.narrowing.outliers import RelaxedReport, narrow_with_outliers
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
 from cuikslam.options import SolveOptions
-from cuikslam.outliers import outlier_messages, outlier_scope, outliers_to_json, reject_unknown
+from cuikslam.outliers import (
+    certify_without_outliers,
+    outlier_messages,
+    outlier_scope,
+    outliers_to_json,
+    reject_unknown,
+)
 from cuikslam.results.solution import Hypothesis, Solution
 
 __all__ = ["budget_message", "hypothesis_from_graph", "solve"]
@@ -186,13 +192,10 @@ def solve(
     certify_limit = options.certify_limit
     if n_poses > CERTIFY_MAX_POSES:
         certify_limit = 0  # the witness search is a dense least-squares problem
-    if log.outlier_bounds and solution.hypotheses:
-        certify_limit = 0  # a witness would have to leave the outliers out: not certified
-        solution.messages.append(
-            "not certified: the witness search does not handle declared outliers, so the "
-            "hypothesis stays 'not refuted'"
-        )
     certify_start = time.perf_counter()
+    if log.outlier_bounds and certify_limit != 0:
+        certify_without_outliers(log, solution, certify, deadline)
+        certify_limit = 0  # done: the witness leaves the proven outliers out
     certified = replace(solution, hypotheses=solution.hypotheses[:certify_limit])
     certify(log, certified, deadline=deadline)
     solution.hypotheses[:certify_limit] = certified.hypotheses  # proven ones now rank first
