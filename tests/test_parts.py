@@ -89,6 +89,31 @@ def test_same_boxes_for_any_number_of_threads(monkeypatch: pytest.MonkeyPatch) -
         assert report.lp_rounds == runs[0][2].lp_rounds
 
 
+def test_a_failing_part_stops_the_others(monkeypatch: pytest.MonkeyPatch) -> None:
+    """An exception in the first part (Ctrl-C, say) is raised at once: the other threads
+    stop at their next window instead of finishing their sweep."""
+    import threading
+    import time
+
+    monkeypatch.setattr(parts_module, "MIN_PART_WINDOWS", 3)
+    visit = sweeps_module._visit
+    other = []
+
+    def slow_visit(part, *args):
+        if threading.current_thread() is threading.main_thread():
+            raise RuntimeError("interrupted")
+        other.append(part.windows)
+        time.sleep(0.05)
+        return visit(part, *args)
+
+    monkeypatch.setattr(sweeps_module, "_visit", slow_visit)
+    log, _ = simulate_random_world(seed=4, n_poses=60)
+    graph = KinematicGraph.from_log(log)
+    with pytest.raises(RuntimeError, match="interrupted"):
+        _lp(graph, 2)
+    assert len(other) <= 2, len(other)  # of the 5 or 6 windows of the second part
+
+
 def test_parts_stay_close_to_one_part(monkeypatch: pytest.MonkeyPatch) -> None:
     """Cutting the chain loses only what crosses the cut within a sweep: the total width of
     the poses stays within 5 % of the single part's (the issue's tightness claim)."""

@@ -96,6 +96,8 @@ class Part:
         """The part at the start of the chain (it reports the sweeps' progress)."""
         self.cut = False
         """Whether the deadline stopped its last sweep."""
+        self.abandon = False
+        """Set when another part failed: the part stops at its next window."""
 
     def order(self, forward: bool) -> Sequence[int]:
         """Its windows in the sweep's direction."""
@@ -134,7 +136,12 @@ def run_parts(
     else:
         with ThreadPoolExecutor(max_workers=min(threads, len(parts)) - 1) as pool:
             futures = [pool.submit(one, part) for part in parts[1:]]
-            first = one(parts[0])
+            try:
+                first = one(parts[0])
+            except BaseException:  # e.g. Ctrl-C: the other threads stop at their next window
+                for part in parts:
+                    part.abandon = True
+                raise
             results = [first] + [future.result() for future in futures]
     if not all(results):
         return False, False

@@ -306,6 +306,9 @@ def _sweep_part(
     skipped = part.lp.skipped
     part.cut = False
     for step, w in enumerate(part.order(forward)):
+        if part.abandon:
+            part.cut = True
+            break
         if progress is not None and part.first:
             progress(step)
         visited = _visit(part, windows[w], warm[w], signature, w, lo, hi, reuse, deadline)
