@@ -21,9 +21,12 @@ import math
 
 import numpy as np
 
+from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import expired
 from cuikslam.graph.encoding import KIND, NO_FACTOR, OBSERVATION
-from cuikslam.narrowing.propagation import Arrays, Status, narrow
+from cuikslam.narrowing._factors import fresh_memory
+from cuikslam.narrowing._propagate import INCONSISTENT, propagate_buffered
+from cuikslam.narrowing.propagation import Arrays, Status
 
 __all__ = ["MAX_SETS", "MAX_TOTAL", "BlockBranching", "branch_on_blocks"]
 
@@ -87,8 +90,10 @@ def branch_on_blocks(
         than its allowance (a proof), else ``Status.CONSISTENT``.
     """
     report = report if report is not None else BlockBranching()
+    ensure_round_to_nearest()
     factors = hard.factors
     original = factors[members, KIND].copy()
+    work = _Work(hard, lo, hi)
     order = np.argsort(block, kind="stable")
     bounds = np.flatnonzero(np.diff(block[order])) + 1
     try:
@@ -106,12 +111,39 @@ def branch_on_blocks(
             ):
                 report.skipped += 1
                 continue
-            status = _branch(hard, lo, hi, members[group], p, rtol, max_rounds, report, group)
+            status = _branch(hard, lo, hi, members[group], p, rtol, max_rounds, report, group, work)
             if status is Status.INCONSISTENT:
                 return status
     finally:
         factors[members, KIND] = original
     return Status.CONSISTENT
+
+
+class _Work:
+    """Working bounds and the propagation's buffers, shared by every set of a call: a set
+    costs what its propagation touches, not the size of the graph."""
+
+    def __init__(self, hard: Arrays, lo: np.ndarray, hi: np.ndarray) -> None:
+        n = hard.factors.shape[0]
+        self.lo, self.hi = lo.copy(), hi.copy()
+        self.queue = np.empty(n + 1, dtype=np.int64)
+        self.state = np.zeros(n, dtype=np.int8)
+        self.memory = fresh_memory(n)
+        self.applied = np.empty(n, dtype=np.int64)
+        self.hull_lo = np.full_like(lo, np.inf)
+        self.hull_hi = np.full_like(hi, -np.inf)
+        self.count = np.zeros(lo.shape[0], dtype=np.int64)
+
+    def run(self, hard: Arrays, touched: np.ndarray, rtol: float, max_rounds: int):
+        """Propagate from ``touched`` on the working bounds: (status, applications, the
+        variables it may have changed)."""
+        status, applications, n_applied = propagate_buffered(
+            self.lo, self.hi, hard.factors, hard.head, hard.entry_factor, hard.entry_next,
+            touched, float(rtol), int(max_rounds), 2**62, self.queue, self.state,
+            self.memory, self.applied,
+        )  # fmt: skip
+        rows = hard.factors[self.applied[:n_applied], 1:].ravel()
+        return status, applications, np.unique(rows[rows >= 0])
 
 
 def _branch(
@@ -124,32 +156,43 @@ def _branch(
     max_rounds: int,
     report: BlockBranching,
     group: np.ndarray,
+    work: _Work,
 ) -> Status:
-    """One block: every set of p outliers among ``rows``; the hull of the survivors."""
+    """One block: every set of p outliers among ``rows``; the hull of the survivors.
+
+    A variable no surviving set's propagation touched keeps its bounds (each such set
+    leaves it as it is); the others get the hull of the sets' bounds.
+    """
     k = rows.size
-    hull_lo = np.full_like(lo, np.inf)
-    hull_hi = np.full_like(hi, -np.inf)
     in_every = np.ones(k, dtype=np.bool_)
     survived = 0
+    seen = []
     report.blocks += 1
     for outliers in itertools.combinations(range(k), p):
         keep = np.ones(k, dtype=np.bool_)
         keep[list(outliers)] = False
         hard.factors[rows[keep], KIND] = OBSERVATION
-        part_lo, part_hi = lo.copy(), hi.copy()
-        result = narrow(hard, part_lo, part_hi, rows[keep], rtol, max_rounds)
+        status, applications, changed = work.run(hard, rows[keep], rtol, max_rounds)
         hard.factors[rows[keep], KIND] = NO_FACTOR
         report.sets += 1
-        report.applications += result.applications
-        if result.is_empty:
-            continue
-        survived += 1
-        np.minimum(hull_lo, part_lo, out=hull_lo)
-        np.maximum(hull_hi, part_hi, out=hull_hi)
-        in_every &= ~keep
+        report.applications += applications
+        if status != INCONSISTENT:
+            survived += 1
+            in_every &= ~keep
+            work.hull_lo[changed] = np.minimum(work.hull_lo[changed], work.lo[changed])
+            work.hull_hi[changed] = np.maximum(work.hull_hi[changed], work.hi[changed])
+            work.count[changed] += 1
+            seen.append(changed)
+        work.lo[changed] = lo[changed]  # back to the block's bounds
+        work.hi[changed] = hi[changed]
     if survived == 0:
         return Status.INCONSISTENT
-    np.maximum(lo, hull_lo, out=lo)
-    np.minimum(hi, hull_hi, out=hi)
+    if seen:
+        every = np.unique(np.concatenate(seen))
+        narrowed = every[work.count[every] == survived]
+        lo[narrowed] = np.maximum(lo[narrowed], work.hull_lo[narrowed])
+        hi[narrowed] = np.minimum(hi[narrowed], work.hull_hi[narrowed])
+        work.lo[narrowed], work.hi[narrowed] = lo[narrowed], hi[narrowed]
+        work.hull_lo[every], work.hull_hi[every], work.count[every] = np.inf, -np.inf, 0
     report.proven.extend(int(i) for i in group[in_every])
     return Status.CONSISTENT
