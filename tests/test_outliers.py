@@ -227,7 +227,7 @@ def test_declared_outliers_keep_the_truth_at_lp(world: OutlierWorld) -> None:
 
 @pytest.mark.slow
 @settings(max_examples=3000, deadline=None, suppress_health_check=HEALTH)
-@given(outlier_worlds(), st.sampled_from(["hull", "lp"]))
+@given(outlier_worlds(), st.sampled_from(["hull", "lp", "lp-split"]))
 def test_declared_outliers_keep_the_truth_many_worlds(world: OutlierWorld, level: str) -> None:
     _solve_and_check(world, level)
 
