@@ -56,6 +56,7 @@ def _run_world(
 ) -> None:  # fmt: skip
     from cuikslam.hypotheses import solve_unknown
     from cuikslam.hypotheses.witness import certify
+    from cuikslam.narrowing.consistency import warm_up_lp
     from cuikslam.results.association import rank_of
     from cuikslam.simulate import simulate_random_world
 
@@ -65,9 +66,10 @@ def _run_world(
     )  # fmt: skip
     warm_up = simulate_random_world(seed=seed, n_poses=5, n_landmarks=3, unknown=True)[0]
     solve_unknown(warm_up, consistency="hull")
+    warm_up_lp()  # the search narrows ambiguous nodes to lp
     start = time.perf_counter()
     solution = solve_unknown(
-        log, consistency=level, strengthen_during=0, deadline=start + budget
+        log, consistency=level, deadline=start + budget
     )  # fmt: skip
     elapsed = time.perf_counter() - start
     decide_start = time.perf_counter()

@@ -3,7 +3,10 @@
 The search split into subtrees and merged must give what one process gives: the same
 survivors, boxes, summary and counts. Two counts are exempt: ``peak_frontier`` (each task
 has its own stack) and ``operator_applications`` (propagation visits factors in the order
-the shared graph pooled them, which depends on what was explored before).
+the shared graph pooled them, which depends on what was explored before). The searches here
+run without the ``lp`` level on ambiguous nodes (``strengthen_during=0``): that level is cut
+by time (``explorer.AMBIGUITY_LP_SECONDS``), so how far it narrows depends on the load of
+the machine, and boxes compared bit for bit would too.
 """
 
 from __future__ import annotations
@@ -73,14 +76,18 @@ def test_the_split_search_finds_what_one_process_finds(client, seed: int) -> Non
     log = ambiguous_log(seed)
     streamed_one: list[list[str]] = []
     one = solve_unknown(
-        log, consistency="hull", max_hypotheses=1000, on_survivor=streamed_one.append
+        log,
+        consistency="hull",
+        max_hypotheses=1000,
+        strengthen_during=0,
+        on_survivor=streamed_one.append,
     )
     assert one.complete and one.statistics["survivors"] >= 8
     results = []
     streamed: list[list[str]] = []
     many = search_distributed(
-        log, client=client, consistency="hull", max_hypotheses=1000, quantum_nodes=10,
-        on_result=results.append, on_survivor=streamed.append,
+        log, client=client, consistency="hull", max_hypotheses=1000, strengthen_during=0,
+        quantum_nodes=10, on_result=results.append, on_survivor=streamed.append,
     )  # fmt: skip
     assert many.statistics["resubmitted"] == 0
     assert any(r.unexplored for r in results), "no task was split again"
@@ -93,10 +100,12 @@ def test_the_best_ranked_and_the_stronger_level_match(client) -> None:
     from cuikslam.hypotheses.distributed import search_distributed
 
     log = ambiguous_log(2)
-    one = solve_unknown(log, consistency="lp", max_hypotheses=3, strengthen_limit=2)
+    one = solve_unknown(
+        log, consistency="lp", max_hypotheses=3, strengthen_limit=2, strengthen_during=0
+    )
     many = search_distributed(
         log, client=client, consistency="lp", max_hypotheses=3, strengthen_limit=2,
-        quantum_nodes=25,
+        strengthen_during=0, quantum_nodes=25,
     )  # fmt: skip
     assert len(one.hypotheses) == 3 and one.statistics["survivors"] > 3
     assert_same_solution(one, many)
@@ -124,13 +133,13 @@ def test_a_node_budget_stop_names_every_unexplored_subtree(client) -> None:
 
     full: list = []
     search_distributed(
-        log, client=client, consistency="hull", quantum_nodes=10, on_result=full.append,
-        on_survivor=lambda _: None,
+        log, client=client, consistency="hull", quantum_nodes=10, strengthen_during=0,
+        on_result=full.append, on_survivor=lambda _: None,
     )  # fmt: skip
     part: list = []
     left: list = []
     stopped = search_distributed(
-        log, client=client, consistency="hull", quantum_nodes=10, max_nodes=60,
+        log, client=client, consistency="hull", quantum_nodes=10, strengthen_during=0, max_nodes=60,
         on_result=part.append, on_unexplored=left.append, on_survivor=lambda _: None,
     )  # fmt: skip
     assert not stopped.complete
@@ -156,7 +165,7 @@ def test_a_worker_killed_mid_search_changes_nothing() -> None:
     from cuikslam.hypotheses.distributed import search_distributed
 
     log = ambiguous_log(2)
-    one = solve_unknown(log, consistency="hull", max_hypotheses=1000)
+    one = solve_unknown(log, consistency="hull", max_hypotheses=1000, strengthen_during=0)
     with dask_client(workers=2) as client:
         before = client.run(os.getpid)
         killed: list[str] = []
@@ -168,8 +177,8 @@ def test_a_worker_killed_mid_search_changes_nothing() -> None:
                 killed.append(busy[0])
 
         many = search_distributed(
-            log, client=client, consistency="hull", max_hypotheses=1000, quantum_nodes=10,
-            on_result=kill_a_busy_worker,
+            log, client=client, consistency="hull", max_hypotheses=1000, strengthen_during=0,
+            quantum_nodes=10, on_result=kill_a_busy_worker,
         )  # fmt: skip
         assert killed, "no worker was busy when a result arrived"
         assert before[killed[0]] not in client.run(os.getpid).values()
@@ -181,7 +190,12 @@ def test_a_batch_of_logs_gives_one_result_per_log(client) -> None:
     from cuikslam.solver import solve
 
     logs = [ambiguous_log(seed) for seed in (0, 1)]
-    options = {"consistency": "hull", "certify_limit": 0, "time_budget": None}
+    options = {
+        "consistency": "hull",
+        "certify_limit": 0,
+        "time_budget": None,
+        "strengthen_during": 0,
+    }
     batch = solve_batch(logs, client, **options)
     for log, solution in zip(logs, batch, strict=True):
         alone = solve(log, **options)
@@ -204,7 +218,8 @@ def test_cli_several_logs_write_one_result_each(tmp_path: Path) -> None:
     logs = _write_logs(tmp_path, range(2))
     out = tmp_path / "results"
     result = subprocess.run(
-        [*CLI, "solve", *map(str, logs), "--consistency", "hull", "-q", "--json", str(out)],
+        [*CLI, "solve", *map(str, logs), "--consistency", "hull", "--strengthen-during", "0",
+         "-q", "--json", str(out)],
         capture_output=True, text=True, timeout=300, check=False,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
@@ -250,7 +265,18 @@ def test_cli_scheduler_runs_the_search_on_an_existing_cluster(tmp_path: Path) ->
         "distributed", reason='needs Dask: pip install "cuikslam[distributed]"'
     )
     [log] = _write_logs(tmp_path, range(1))
-    args = [*CLI, "solve", str(log), "-q", "--consistency", "hull", "--time-budget", "2"]
+    args = [
+        *CLI,
+        "solve",
+        str(log),
+        "-q",
+        "--consistency",
+        "hull",
+        "--strengthen-during",
+        "0",
+        "--time-budget",
+        "2",
+    ]
     alone = subprocess.run(args, capture_output=True, text=True, timeout=300, check=False)
     with distributed.LocalCluster(
         n_workers=1, threads_per_worker=1, processes=False, protocol="tcp",

@@ -98,7 +98,7 @@ def test_survivors_refuted_by_the_stronger_level_leave_the_summary(monkeypatch) 
         return None if len(self.landmark_xs(node)) == 5 else node
 
     monkeypatch.setattr(Explorer, "strengthen_node", refute_five_landmarks)
-    after = solve_unknown(log, consistency="lp")
+    after = solve_unknown(log, consistency="lp", strengthen_during=0)
     assert [h.n_landmarks for h in after.hypotheses] == [4]
     assert after.statistics["survivors"] == 1
     assert after.correspondence["survivors"] == 1

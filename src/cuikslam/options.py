@@ -67,9 +67,10 @@ class SolveOptions:
     strengthen_limit : int
         The level is applied to every survivor when at most this many, else to the
         best-ranked one.
-    strengthen_during : int
-        The children of the first ``strengthen_during`` decisions of the search get level
-        ``lp`` when the decision is ambiguous (0: off).
+    strengthen_during : int or None
+        Nodes of the unknown-correspondence search that would branch are first narrowed to
+        level ``lp`` (briefly, see :meth:`cuikslam.hypotheses.explorer.Explorer.children`)
+        during its first ``strengthen_during`` decisions (None: all of them; 0: off).
     certify_limit : int or None
         Best-ranked hypotheses that get a witness search (None: every reported one).
     rtol : float
@@ -85,7 +86,7 @@ class SolveOptions:
     consistency: Level = Level.AUTO
     max_hypotheses: int = 100
     strengthen_limit: int = 100
-    strengthen_during: int = 0
+    strengthen_during: int | None = None
     certify_limit: int | None = None
     rtol: float = 1e-3
     time_budget: float | None = DEFAULT_TIME_BUDGET

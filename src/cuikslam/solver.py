@@ -170,7 +170,9 @@ def solve(
     options = (options or SolveOptions()).replace(**overrides)
     reject_unknown(log)  # outliers with unknown correspondence: not supported yet
     ensure_round_to_nearest()
-    warm_up_s = warm_up(log.has_unknown_correspondence, options.consistency.value != "hull")
+    unknown = log.has_unknown_correspondence
+    lp = options.consistency.value != "hull" or (unknown and options.strengthen_during != 0)
+    warm_up_s = warm_up(unknown, lp)
     start = time.perf_counter()
     deadline = deadline_after(options.time_budget)
     n_poses = len(log.pose_ids)

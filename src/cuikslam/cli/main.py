@@ -76,8 +76,8 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
         "--strengthen-during",
         type=_non_negative_int,
         default=SolveOptions.strengthen_during,
-        help="also apply level lp after every ambiguous observation while at most this many "
-        "hypotheses live: fewer survivors, slower (default %(default)s: off)",
+        help="narrow a search node to level lp before it branches, during the first N "
+        "decisions of the search (default: all of them; 0: off)",
     )
     p.add_argument(
         "--time-budget",

@@ -209,6 +209,17 @@ class SharedGraph:
         self.lo[variables], self.hi[variables] = new_lo, new_hi
         return self._apply(_NO_INT, self.factors_of(variables), variables)
 
+    def narrowed_to(
+        self, overlay: Overlay, variables: np.ndarray, lo: np.ndarray, hi: np.ndarray
+    ) -> Overlay | None:
+        """The branch of ``overlay`` with ``variables`` set to ``[lo, hi]``, propagated; None
+        when proven empty. The caller guarantees a sound narrowing of the branch's own
+        bounds (e.g. a stronger level on a subgraph started from them): headings included,
+        the bounds are taken as they are."""
+        self._checkout(overlay)
+        self.lo[variables], self.hi[variables] = lo, hi
+        return self._apply(_NO_INT, self.factors_of(variables), variables)
+
     def gate(
         self, overlay: Overlay, pose_x: int, landmark_xs: np.ndarray, bearing: int, distance: int
     ) -> np.ndarray:
@@ -248,10 +259,16 @@ class SharedGraph:
         lo[overlay.idx], hi[overlay.idx] = overlay.lo, overlay.hi
         return lo, hi
 
-    def standalone(self, overlay: Overlay) -> tuple[np.ndarray, np.ndarray, Arrays]:
-        """The branch as a private graph: its bounds, and its rows in pool order, linked."""
+    def standalone(
+        self, overlay: Overlay, canonical: bool = False
+    ) -> tuple[np.ndarray, np.ndarray, Arrays]:
+        """The branch as a private graph: its bounds, and its rows linked, in pool order or
+        (``canonical``) sorted, so that what is computed from them does not depend on the
+        order in which this process pooled them (the ``lp`` level's LPs do)."""
         lo, hi = self.materialize(overlay)
         rows = self.rows_of(overlay)
+        if canonical:
+            rows = rows[np.lexsort(rows.T[::-1])]
         head = np.full(len(lo), -1, dtype=np.int64)
         entry_factor = np.zeros(N_SLOTS * max(len(rows), 1), dtype=np.int64)
         entry_next = np.zeros_like(entry_factor)

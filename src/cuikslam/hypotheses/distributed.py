@@ -116,7 +116,7 @@ def search_distributed(
     consistency: str = DEFAULT_LEVEL,
     max_hypotheses: int = DEFAULT_MAX_HYPOTHESES,
     strengthen_limit: int = DEFAULT_STRENGTHEN_LIMIT,
-    strengthen_during: int = DEFAULT_STRENGTHEN_DURING,
+    strengthen_during: int | None = DEFAULT_STRENGTHEN_DURING,
     rtol: float = DEFAULT_RTOL,
     progress: Callable[[int, int], None] | None = None,
     deadline: float | None = None,

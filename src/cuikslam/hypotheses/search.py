@@ -51,7 +51,7 @@ DEFAULT_STRENGTHEN_LIMIT = SolveOptions.strengthen_limit
 BEST_ATTEMPTS = 10
 """Beyond ``strengthen_limit`` survivors, the best-ranked are tried until one is not refuted."""
 DEFAULT_STRENGTHEN_DURING = SolveOptions.strengthen_during
-"""Decisions (the first ones) whose children get ``lp`` during the search when ambiguous."""
+"""Decisions (the first ones; None: all) whose nodes get ``lp`` before they branch."""
 SEARCH_SHARE = 0.7
 """Share of the time budget the search itself may use: the rest is left to deciding its
 survivors (bisection, the stronger level), even when the search is cut short."""
@@ -324,7 +324,7 @@ def solve_unknown(
     consistency: str = DEFAULT_LEVEL,
     max_hypotheses: int = DEFAULT_MAX_HYPOTHESES,
     strengthen_limit: int = DEFAULT_STRENGTHEN_LIMIT,
-    strengthen_during: int = DEFAULT_STRENGTHEN_DURING,
+    strengthen_during: int | None = DEFAULT_STRENGTHEN_DURING,
     rtol: float = DEFAULT_RTOL,
     progress: Callable[[int, int], None] | None = None,
     deadline: float | None = None,
@@ -345,10 +345,11 @@ def solve_unknown(
         boxes). It never limits the search: every survivor is counted.
     strengthen_limit : int
         The level is applied to all survivors when at most this many, else to the best.
-    strengthen_during : int
-        The children of the first ``strengthen_during`` decisions get ``lp`` (when the
-        decision is ambiguous and ``consistency`` is not ``hull``), so that narrower boxes
-        refute whole subtrees early and gate the next decisions.
+    strengthen_during : int or None
+        During the first ``strengthen_during`` decisions (None: all), a node that would
+        branch is narrowed to ``lp`` first (briefly, whatever ``consistency``), so that
+        narrower boxes gate its candidates and refute whole subtrees early
+        (:meth:`.explorer.Explorer.children`).
     rtol : float
         Relative shrink below which propagation stops requeueing an operator.
     progress : callable, optional

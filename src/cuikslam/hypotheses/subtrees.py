@@ -47,7 +47,7 @@ class TaskOptions:
     """Names the search: a worker builds the problem once per key."""
     consistency: str
     rtol: float
-    strengthen_during: int
+    strengthen_during: int | None
     local_frame: bool
     keep: int
     """Best-ranked survivors returned."""

@@ -1,0 +1,81 @@
+"""The ``lp`` level on a node about to branch, on the window of poses that leads to it.
+
+Hull pose boxes grow along a trajectory: on a dense world they are metres wide after a few
+dozen poses, wide enough for a wrong association to pass the gate and survive hundreds of
+decisions. The ``lp`` level (:mod:`cuikslam.narrowing.consistency`) keeps them far
+tighter, but on a whole long graph it costs seconds. Before a node branches, the level is
+applied to the subgraph of the last ``WINDOW_POSES`` poses up to its decision's pose (their
+odometry, observations and negative information, in the global frame, started from the
+node's bounds), within ``SECONDS``: dropping the other constraints is sound, so the
+narrowed bounds hold for the whole hypothesis, and an empty window refutes it. The node's
+children are then made from the tighter box (:meth:`.explorer.Explorer.children`).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from cuikslam.graph.encoding import N_SLOTS
+from cuikslam.hypotheses import _kernels as k
+from cuikslam.hypotheses._shared import Overlay, SharedGraph
+from cuikslam.hypotheses.local import window_rows
+from cuikslam.narrowing.consistency import StrengthenReport, strengthen
+from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays
+
+__all__ = ["AmbiguityLp"]
+
+WINDOW_POSES = 60
+"""Poses of the window: its decision's pose and those reached just before it."""
+SECONDS = 1.0
+"""Time the level may take on one window (cut short, it is still sound, only weaker)."""
+
+
+class AmbiguityLp:
+    """Narrows a node's window to the ``lp`` level (see the module docstring)."""
+
+    def __init__(
+        self, pose_x: dict[int, int], n_vars: int, rtol: float, sensor_x: dict[int, list[int]]
+    ) -> None:
+        order = list(pose_x)
+        self._window: dict[int, np.ndarray] = {}
+        for i, pose in enumerate(order):
+            xs = []
+            for q in order[max(0, i - WINDOW_POSES + 1) : i + 1]:
+                xs += [pose_x[q], *sensor_x.get(q, ())]
+            self._window[pose] = np.array(xs, dtype=np.int64)
+        self._in_window = np.zeros(n_vars, dtype=np.bool_)
+        self._local_id = np.full(n_vars, -1, dtype=np.int64)
+        self._is_pose = np.zeros(n_vars, dtype=np.bool_)
+        self.rtol = rtol
+
+    def narrow(
+        self, graph: SharedGraph, overlay: Overlay, pose: int, deadline: float | None
+    ) -> tuple[Overlay | None, int]:
+        """The branch of ``overlay`` with the window ending at ``pose`` narrowed to ``lp``
+        (within ``SECONDS`` and ``deadline``); None when that proves it empty. Also returns
+        the operator applications of the level's propagations."""
+        local, variables, _ = window_rows(
+            self._window[pose], graph.rows, graph.kinds, graph.in_base, overlay.rows,
+            graph.head, graph.entry_factor, graph.entry_next, self._in_window,
+            self._local_id, self._is_pose,
+        )  # fmt: skip
+        self._local_id[variables] = -1
+        if len(local) == 0:
+            return overlay, 0
+        local = local[np.lexsort(local.T[::-1])]  # the LPs do not depend on the pool's order
+        lo, hi = graph.values(overlay, variables)
+        head = np.full(len(variables), -1, dtype=np.int64)
+        entry_factor = np.zeros(N_SLOTS * len(local), dtype=np.int64)
+        entry_next = np.zeros_like(entry_factor)
+        k.link_rows(local, len(local), head, entry_factor, entry_next)
+        cap = time.perf_counter() + SECONDS
+        result = strengthen(
+            Arrays(local, head, entry_factor, entry_next), lo, hi, "lp", self.rtol,
+            DEFAULT_ROUNDS, deadline=cap if deadline is None else min(cap, deadline),
+            report=StrengthenReport(),
+        )  # fmt: skip
+        if result.is_empty:
+            return None, result.applications
+        return graph.narrowed_to(overlay, variables, lo, hi), result.applications
