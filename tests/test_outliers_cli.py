@@ -104,6 +104,7 @@ def test_solve_lists_the_proven_outlier_and_evaluate_counts_the_truth(tmp_path: 
     figures = json.loads((tmp_path / "e.json").read_text(encoding="utf-8"))
     assert figures["guarantee_held"] is True
     assert (figures["poses"]["inside"], figures["landmarks"]["inside"]) == (2, 1)
+    assert figures["notes"][0].startswith("the log declares outliers (at most 1 in all) and 1 were")
 
 
 def test_more_outliers_than_declared_exits_1(tmp_path: Path) -> None:

@@ -35,6 +35,7 @@ __all__ = [
     "LISTED",
     "certify_without_outliers",
     "check_declaration",
+    "evaluation_note",
     "outlier_messages",
     "outlier_scope",
     "outliers_to_json",
@@ -121,6 +122,15 @@ def _declared_text(declared: list[dict[str, Any]]) -> str:
         else:
             parts.append(f"at most {d['at_most']} per {d['window']} poses")
     return " and ".join(parts)
+
+
+def evaluation_note(summary: dict[str, Any]) -> str:
+    """What ``cuikslam evaluate`` says of a result whose log declares outliers."""
+    return (
+        f"the log declares outliers ({_declared_text(summary['declared'])}) and "
+        f"{len(summary['proven'])} were proven: the boxes are guaranteed only if the "
+        "declaration holds (`cuikslam calibrate check LOG --truth TRUTH` says whether it does)"
+    )
 
 
 def outlier_messages(summary: dict[str, Any]) -> list[str]:

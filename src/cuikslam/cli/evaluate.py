@@ -151,6 +151,10 @@ def run_evaluate(
     solution = read_result_file(result_path)
     truth = read_truth_file(truth_path)
     notes: list[str] = []
+    if solution.outliers is not None:
+        from cuikslam.outliers import evaluation_note
+
+        notes.append(evaluation_note(solution.outliers))
     named = _named_ids(log_path, solution.log_path, notes)
     if not solution.hypotheses:
         raise CommandError(f"{result_path}: no hypothesis to evaluate (the log was refuted)")
