@@ -31,9 +31,15 @@ from cuikslam.narrowing.propagation import DEFAULT_ROUNDS
 
 __all__ = ["Budget", "Explorer", "Node", "SearchStatistics"]
 
+AMBIGUITY_LP_MIN_DECISIONS = 64
+"""Searches of fewer decisions do without the ``lp`` level on ambiguous nodes: their hull
+boxes have not grown far and their trees are small (on a 12-pose world the level cost
+8 times the search and refuted nothing more)."""
 AMBIGUITY_LP_GAP = 8
 """Decisions after a node narrowed to ``lp`` before another node on its path may be: each
-such node's box serves the next decisions of its whole subtree. A rule on the node's path
+such node's box serves the next decisions of its whole subtree. The gap doubles after a
+narrowing that left as many children, and is reset after one that cut some: where the level
+does not help (wide odometry, say) its cost fades along the path. Rules on the node's path
 only, so that exploring a subtree stays a function of its prefix (on one worker or many)."""
 
 LEAF_BISECTION_PARTS = 8
@@ -108,6 +114,8 @@ class Node:
     """The consistency level its boxes are known to reach."""
     lp_depth: int = -AMBIGUITY_LP_GAP
     """Depth of the last node on its path narrowed to ``lp`` before it branched."""
+    lp_gap: int = AMBIGUITY_LP_GAP
+    """Decisions from that node to the next one that may be (see ``AMBIGUITY_LP_GAP``)."""
 
     def decisions(self) -> list[int]:
         """Landmark number of every decision made, oldest first."""
@@ -232,7 +240,7 @@ class Explorer:
         if overlay is None:
             return None
         [overlay] = graph.rebase([overlay])  # the root becomes the base, its rows the base set
-        node = Node(0, overlay, (), None)
+        node = Node(0, overlay, (), None, lp_depth=-AMBIGUITY_LP_GAP, lp_gap=AMBIGUITY_LP_GAP)
         if self._breaks_class_prior(node):
             return None
         if self.problem.has_sensor:
@@ -252,8 +260,9 @@ class Explorer:
         out, options = self._children(node)
         if (
             len(out) < 2
+            or len(self.problem.decisions) < AMBIGUITY_LP_MIN_DECISIONS
             or node.depth >= self.during
-            or node.depth - node.lp_depth < AMBIGUITY_LP_GAP
+            or node.depth - node.lp_depth < node.lp_gap
         ):
             return out, options
         started = time.perf_counter()
@@ -269,7 +278,9 @@ class Explorer:
             return [], options
         self.stats.branch_points -= 1  # the same node, expanded again: its first
         self.stats.created -= len(out)  # children are replaced, never explored
-        return self._children(replace(node, overlay=overlay, lp_depth=node.depth))
+        kids, options = self._children(replace(node, overlay=overlay))
+        gap = AMBIGUITY_LP_GAP if len(kids) < len(out) else 2 * node.lp_gap
+        return [replace(c, lp_depth=node.depth, lp_gap=gap) for c in kids], options
 
     def _children(self, node: Node) -> tuple[list[Node], int]:
         p, graph, stats = self.problem, self.graph, self.stats
@@ -297,7 +308,12 @@ class Explorer:
                 stats.proven_empty += 1
                 continue
             made = Node(
-                k + 1, overlay, node.blocks, (number, node.assigned), lp_depth=node.lp_depth
+                k + 1,
+                overlay,
+                node.blocks,
+                (number, node.assigned),
+                lp_depth=node.lp_depth,
+                lp_gap=node.lp_gap,
             )
             child = self._after_decision(made)
             if child is not None:
@@ -308,6 +324,7 @@ class Explorer:
             (*node.blocks, k),
             (len(all_xs), node.assigned),
             lp_depth=node.lp_depth,
+            lp_gap=node.lp_gap,
         )
         prior = p.class_priors.get(d.landmark_class)
         if prior is not None and prior.at_most is not None and len(numbers) >= prior.at_most:
