@@ -269,11 +269,7 @@ class SharedGraph:
         rows = self.rows_of(overlay)
         if canonical:
             rows = rows[np.lexsort(rows.T[::-1])]
-        head = np.full(len(lo), -1, dtype=np.int64)
-        entry_factor = np.zeros(N_SLOTS * max(len(rows), 1), dtype=np.int64)
-        entry_next = np.zeros_like(entry_factor)
-        k.link_rows(rows, len(rows), head, entry_factor, entry_next)
-        return lo, hi, Arrays(rows, head, entry_factor, entry_next)
+        return lo, hi, linked(rows, len(lo))
 
     def overlay_of(self, lo: np.ndarray, hi: np.ndarray, rows: np.ndarray) -> Overlay:
         """The overlay of a branch given by full bounds and its rows beyond the base set."""
@@ -369,6 +365,16 @@ class SharedGraph:
         )
         self._table = k.rehash(self.rows, self.kinds, self.n_rows, len(self._table))
         return [Overlay(o.idx, o.lo, o.hi, renumber[o.rows]) for o in overlays]
+
+
+def linked(rows: np.ndarray, n_vars: int) -> Arrays:
+    """Factor ``rows`` on ``n_vars`` variables, with their adjacency lists: a graph the
+    narrowing kernels take."""
+    head = np.full(n_vars, -1, dtype=np.int64)
+    entry_factor = np.zeros(N_SLOTS * max(len(rows), 1), dtype=np.int64)
+    entry_next = np.zeros_like(entry_factor)
+    k.link_rows(rows, len(rows), head, entry_factor, entry_next)
+    return Arrays(rows, head, entry_factor, entry_next)
 
 
 def _bits(values: np.ndarray) -> np.ndarray:

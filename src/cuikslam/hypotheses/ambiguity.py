@@ -17,12 +17,10 @@ import time
 
 import numpy as np
 
-from cuikslam.graph.encoding import N_SLOTS
-from cuikslam.hypotheses import _kernels as k
-from cuikslam.hypotheses._shared import Overlay, SharedGraph
-from cuikslam.hypotheses.local import window_rows
+from cuikslam.hypotheses._shared import Overlay, SharedGraph, linked
+from cuikslam.hypotheses.local import pose_windows, window_rows
 from cuikslam.narrowing.consistency import StrengthenReport, strengthen
-from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays
+from cuikslam.narrowing.propagation import DEFAULT_ROUNDS
 
 __all__ = ["AmbiguityLp"]
 
@@ -38,13 +36,7 @@ class AmbiguityLp:
     def __init__(
         self, pose_x: dict[int, int], n_vars: int, rtol: float, sensor_x: dict[int, list[int]]
     ) -> None:
-        order = list(pose_x)
-        self._window: dict[int, np.ndarray] = {}
-        for i, pose in enumerate(order):
-            xs = []
-            for q in order[max(0, i - WINDOW_POSES + 1) : i + 1]:
-                xs += [pose_x[q], *sensor_x.get(q, ())]
-            self._window[pose] = np.array(xs, dtype=np.int64)
+        self._window = pose_windows(pose_x, sensor_x, WINDOW_POSES)
         self._in_window = np.zeros(n_vars, dtype=np.bool_)
         self._local_id = np.full(n_vars, -1, dtype=np.int64)
         self._is_pose = np.zeros(n_vars, dtype=np.bool_)
@@ -66,13 +58,9 @@ class AmbiguityLp:
             return overlay, 0
         local = local[np.lexsort(local.T[::-1])]  # the LPs do not depend on the pool's order
         lo, hi = graph.values(overlay, variables)
-        head = np.full(len(variables), -1, dtype=np.int64)
-        entry_factor = np.zeros(N_SLOTS * len(local), dtype=np.int64)
-        entry_next = np.zeros_like(entry_factor)
-        k.link_rows(local, len(local), head, entry_factor, entry_next)
         cap = time.perf_counter() + SECONDS
         result = strengthen(
-            Arrays(local, head, entry_factor, entry_next), lo, hi, "lp", self.rtol,
+            linked(local, len(variables)), lo, hi, "lp", self.rtol,
             DEFAULT_ROUNDS, deadline=cap if deadline is None else min(cap, deadline),
             report=StrengthenReport(),
         )  # fmt: skip

@@ -22,10 +22,9 @@ import math
 import numpy as np
 
 from cuikslam._jit import jit
-from cuikslam.graph.encoding import N_SLOTS, ODOMETRY, XA, XB, YB
-from cuikslam.hypotheses import _kernels as k
-from cuikslam.hypotheses._shared import Overlay, SharedGraph
-from cuikslam.narrowing.propagation import Arrays, narrow
+from cuikslam.graph.encoding import ODOMETRY, XA, XB, YB
+from cuikslam.hypotheses._shared import Overlay, SharedGraph, linked
+from cuikslam.narrowing.propagation import narrow
 
 __all__ = ["LocalCheck"]
 
@@ -50,13 +49,7 @@ class LocalCheck:
         ``sensor_x``: x variables of each pose's sensor poses (offset observations), which
         move with their pose and belong to its windows."""
         sensors = sensor_x or {}
-        order = list(pose_x)
-        self._window: dict[int, np.ndarray] = {}
-        for i, pose in enumerate(order):
-            xs = []
-            for q in order[max(0, i - WINDOW_POSES + 1) : i + 1]:
-                xs += [pose_x[q], *sensors.get(q, ())]
-            self._window[pose] = np.array(xs, dtype=np.int64)
+        self._window = pose_windows(pose_x, sensors, WINDOW_POSES)
         self._is_pose = np.zeros(n_vars, dtype=np.bool_)
         for x in [*pose_x.values(), *(x for xs in sensors.values() for x in xs)]:
             self._is_pose[x : x + 3] = True
@@ -84,15 +77,26 @@ class LocalCheck:
         lo, hi = graph.values(overlay, variables)
         lo[free], hi[free] = -math.inf, math.inf
         lo[anchor], hi[anchor] = 0.0, 0.0
-        head = np.full(len(variables), -1, dtype=np.int64)
-        entry_factor = np.zeros(N_SLOTS * len(local), dtype=np.int64)
-        entry_next = np.zeros_like(entry_factor)
-        k.link_rows(local, len(local), head, entry_factor, entry_next)
-        arrays = Arrays(local, head, entry_factor, entry_next)
+        arrays = linked(local, len(variables))
         if narrow(arrays, lo, hi, None, self.rtol, self.rounds, MAX_APPLICATIONS).is_empty:
             self.refuted += 1
             return True
         return False
+
+
+def pose_windows(
+    pose_x: dict[int, int], sensor_x: dict[int, list[int]], n_poses: int
+) -> dict[int, np.ndarray]:
+    """For each pose, the x variables of the window of the ``n_poses`` poses up to it (in
+    the order the log reaches them), its sensors' poses included."""
+    order = list(pose_x)
+    windows = {}
+    for i, pose in enumerate(order):
+        xs = []
+        for q in order[max(0, i - n_poses + 1) : i + 1]:
+            xs += [pose_x[q], *sensor_x.get(q, ())]
+        windows[pose] = np.array(xs, dtype=np.int64)
+    return windows
 
 
 @jit
