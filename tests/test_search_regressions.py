@@ -103,3 +103,30 @@ def test_survivors_refuted_by_the_stronger_level_leave_the_summary(monkeypatch) 
     assert after.statistics["survivors"] == 1
     assert after.correspondence["survivors"] == 1
     assert "all 13 observations are associated for certain" in after.messages
+
+
+def test_survivors_left_out_of_the_report_do_not_make_the_log_inconsistent(monkeypatch) -> None:
+    """The reported (best-ranked) survivors all refuted after the search while others were
+    not kept for the report: the log is not proven inconsistent, and the truth check does
+    not claim that nothing survived. (Lost in the Woods with ids dropped: 2,433 survivors,
+    the 100 reported all refuted by bisection, and the result said "no hypothesis".)"""
+    from cuikslam.hypotheses.explorer import Explorer
+    from cuikslam.results.association import named_landmarks, truth_verdict
+    from cuikslam.simulate import simulate_random_world
+
+    log, truth = simulate_random_world(
+        seed=0, n_poses=12, n_landmarks=6, classes=("a",), size=(16.0, 12.0), max_range=6.0,
+        odometry_bounds=(0.15, 0.3), observation_bounds=(0.5, 0.2), unknown=True,
+    )  # fmt: skip
+    monkeypatch.setattr(Explorer, "strengthen_node", lambda self, node, level: None)
+    solution = solve_unknown(log, consistency="lp", max_hypotheses=2, strengthen_during=0)
+    assert solution.complete and not solution.hypotheses
+    left = solution.statistics["survivors"]
+    assert left > 0
+    assert solution.correspondence["survivors"] == left
+    assert not solution.refuted
+    assert any("NOT proven inconsistent" in m for m in solution.messages)
+    assert not any("the log is inconsistent" in m for m in solution.messages)
+    verdict = truth_verdict(solution, truth, named_landmarks(log))  # (the fake refuted the
+    assert not any("no hypothesis survived" in line for line in verdict.lines)  # truth too)
+    assert any(f"among the {left} survivors" in line for line in verdict.lines)

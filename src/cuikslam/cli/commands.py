@@ -209,6 +209,7 @@ def cmd_import(args: argparse.Namespace) -> int:
 
 def cmd_plot(args: argparse.Namespace) -> int:
     from cuikslam.results.io import read_result_file
+    from cuikslam.results.solution import no_hypothesis
     from cuikslam.simulate.truth import read_truth_file
 
     # Inputs and the output folder first: a bad file fails before matplotlib is imported.
@@ -216,7 +217,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
     solution = read_result_file(args.result)
     truth = read_truth_file(args.truth) if args.truth else None
     if not solution.hypotheses:
-        raise CommandError(f"{args.result}: no hypothesis to plot (the log was refuted)")
+        raise CommandError(f"{args.result}: no hypothesis to plot ({no_hypothesis(solution)})")
 
     from cuikslam.results.figures import plot_solution, save_figure
 

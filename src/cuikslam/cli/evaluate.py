@@ -17,6 +17,7 @@ from cuikslam.log.reader import read_log_file
 from cuikslam.results.association import named_landmarks
 from cuikslam.results.evaluate import Evaluation, evaluate, evaluation_to_json
 from cuikslam.results.io import read_result_file
+from cuikslam.results.solution import no_hypothesis
 from cuikslam.simulate.truth import read_truth_file
 
 __all__ = ["print_evaluation", "run_evaluate"]
@@ -157,7 +158,7 @@ def run_evaluate(
         notes.append(evaluation_note(solution.outliers))
     named = _named_ids(log_path, solution.log_path, notes)
     if not solution.hypotheses:
-        raise CommandError(f"{result_path}: no hypothesis to evaluate (the log was refuted)")
+        raise CommandError(f"{result_path}: no hypothesis to evaluate ({no_hypothesis(solution)})")
     try:
         ev = evaluate(solution, truth, named)
     except ValueError as err:

@@ -460,7 +460,7 @@ def finish_search(
             "reported (raise --max-hypotheses to see more)"
         )
     correspondence = None
-    if hypotheses:
+    if hypotheses or stats.survivors:  # survivors beyond the report still count
         summary = summarize(tally.kept(), set(problem.named), tally.poses())
         messages.append(describe(summary, stats.survivors, complete))
         correspondence = {
@@ -469,7 +469,13 @@ def finish_search(
             "survivors": stats.survivors,
             "complete": complete,
         }
-    if not hypotheses:
+    if not hypotheses and stats.survivors:
+        messages.append(
+            f"the {len(found)} best-ranked survivors were proven impossible after the search; "
+            f"the other {stats.survivors} were not kept for the report (raise "
+            "--max-hypotheses): the log is NOT proven inconsistent"
+        )
+    elif not hypotheses:
         messages.append(
             "every correspondence hypothesis is proven impossible: the log is inconsistent"
             if complete

@@ -111,10 +111,12 @@ def truth_verdict(
                 "(incomplete, not a refutation; raise --time-budget)"
             ],
         )
-    if not solution.hypotheses:
+    if solution.refuted:
         return TruthVerdict(
             False, ["truth check: no hypothesis survived, yet the truth satisfies the log"]
         )
+    if not solution.hypotheses:  # survivors remain, none reported
+        return _truth_not_reported(solution, truth, named)
     rank = rank_of(solution.hypotheses, truth.assignment, named)
     if rank is None:
         return _truth_not_reported(solution, truth, named)

@@ -17,7 +17,15 @@ import numpy as np
 
 from cuikslam.interval.angles import angle_in
 
-__all__ = ["NOT_REFUTED", "PROVEN", "Hypothesis", "Solution", "TruthReport", "check_truth"]
+__all__ = [
+    "NOT_REFUTED",
+    "PROVEN",
+    "Hypothesis",
+    "Solution",
+    "TruthReport",
+    "check_truth",
+    "no_hypothesis",
+]
 
 PROVEN = "proven consistent"
 """A point satisfying every constraint was found and verified in interval arithmetic."""
@@ -100,8 +108,20 @@ class Solution:
 
     @property
     def refuted(self) -> bool:
-        """True when every hypothesis was proven impossible: the log is inconsistent."""
-        return not self.hypotheses and self.complete
+        """True when every hypothesis was proven impossible: the log is inconsistent (not
+        when survivors remain that the report did not keep)."""
+        unreported = (self.correspondence or {}).get("survivors", 0)
+        return not self.hypotheses and self.complete and not unreported
+
+
+def no_hypothesis(solution: Solution) -> str:
+    """Why a result reports no hypothesis, in words."""
+    if solution.refuted:
+        return "the log was refuted"
+    if not solution.complete:
+        return "the search stopped on its budget before finding one"
+    left = (solution.correspondence or {}).get("survivors", 0)
+    return f"{left} survivors were not kept for the report; raise --max-hypotheses"
 
 
 @dataclass

@@ -93,8 +93,11 @@ def _suptitle(solution: Solution, shown: int) -> str:
     if n == 1 and "candidates" not in solution.statistics:  # no correspondence search ran
         return f"known correspondence · level {solution.consistency}"
     if n == 0:
-        text = "no hypothesis survived"
-        text += ": the log is proven inconsistent" if solution.complete else ""
+        text = (
+            "no hypothesis survived: the log is proven inconsistent"
+            if solution.refuted
+            else "no hypothesis reported"
+        )
     else:
         text = f"{n} hypothes{'is' if n == 1 else 'es'} survived"
     if n > shown:
