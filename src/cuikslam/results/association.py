@@ -103,7 +103,8 @@ def truth_verdict(
     -------
     TruthVerdict
     """
-    if not solution.hypotheses and not solution.complete:
+    unreported = int(solution.statistics.get("survivors", 0))
+    if not solution.hypotheses and not solution.complete and not unreported:
         return TruthVerdict(
             True,
             [
