@@ -14,6 +14,7 @@ Run: ``python benchmarks/lost_in_the_woods.py [KEYFRAME ...]`` (default 5 10 20)
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import sys
@@ -58,12 +59,17 @@ def run(path: Path, keyframe: int, every_observation: bool = True) -> dict:
     }
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument(
+        "keyframes", nargs="*", type=int, default=[5, 10, 20], help="samples per pose"
+    )
+    args = parser.parse_args(argv)
     folder = data_dir()
     path = folder / "lost-in-the-woods" / "dataset2.mat" if folder else None
     if path is None or not path.is_file():
         sys.exit("dataset2.mat not found: set CUIKSLAM_DATA")
-    keyframes = [int(a) for a in sys.argv[1:]] or [5, 10, 20]
+    keyframes = args.keyframes
     warm_up()
     rows = [run(path, k) for k in keyframes]
     rows.append(run(path, 10, every_observation=False))
