@@ -43,6 +43,7 @@ from worlds import (
     SENSOR_KINDS,
     World,
     log_violations,
+    search_level,
     true_index,
     truth_misses,
     worlds,
@@ -221,7 +222,8 @@ def check_search(world: World, naming: str, level: str) -> None:
             hull = solve_unknown(log, **BUDGET, **SEARCH_LEVELS["hull"])
             assert_keeps_truth(world, naming, hull)
             assume(hull.complete and len(hull.hypotheses) <= LP_SURVIVORS)
-        solution = solve_unknown(log, **BUDGET, **SEARCH_LEVELS[level])
+        with search_level(level):
+            solution = solve_unknown(log, **BUDGET, **SEARCH_LEVELS[level])
         assert_keeps_truth(world, naming, solution)
 
 

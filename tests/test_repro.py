@@ -21,7 +21,14 @@ from _exact import MP
 from cuikslam.hypotheses import solve_unknown
 from cuikslam.log import Log, read_log_file
 from cuikslam.solver import solve
-from worlds import SEARCH_LEVELS, Truth, log_violations, true_index, truth_misses
+from worlds import (
+    SEARCH_LEVELS,
+    Truth,
+    log_violations,
+    search_level,
+    true_index,
+    truth_misses,
+)
 
 REPRO = Path(__file__).parent / "data" / "repro"
 FOUND = Path(__file__).parent / "data" / "found"
@@ -108,7 +115,8 @@ def test_reproducer_keeps_the_truth_with_default_options(path: Path) -> None:
 @pytest.mark.parametrize("path", CASES, ids=lambda p: p.stem)
 def test_reproducer_keeps_the_truth_at_every_level(path: Path, level: str) -> None:
     log, truth = read_log_file(path), truth_of(path)
-    solution = solve_unknown(log, **SEARCH_LEVELS[level])
+    with search_level(level):
+        solution = solve_unknown(log, **SEARCH_LEVELS[level])
     assert solution.complete
     index = true_index(solution, truth, named_ids(log))
     assert index >= 0, f"the true correspondence is not among {len(solution.hypotheses)} survivors"

@@ -19,7 +19,8 @@ from __future__ import annotations
 import json
 import math
 import random
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 from decimal import Decimal
 from pathlib import Path
@@ -27,10 +28,12 @@ from typing import Any
 
 import mpmath
 import numpy as np
+import pytest
 from hypothesis import assume
 from hypothesis import strategies as st
 
 from _exact import MP, TWO_PI, angle_inside, mpf
+from cuikslam.hypotheses import explorer
 from cuikslam.log import LandmarkPrior, Log, Observation, Odometry, PosePrior, parse_log_lines
 from cuikslam.results.solution import Hypothesis, Solution
 
@@ -44,6 +47,7 @@ __all__ = [
     "down",
     "log_violations",
     "partition",
+    "search_level",
     "true_index",
     "truth_misses",
     "up",
@@ -60,7 +64,24 @@ SEARCH_LEVELS: dict[str, dict[str, Any]] = {
     "lp-during": {"consistency": "lp", "strengthen_limit": 0, "strengthen_during": 50},
 }
 """Options of ``solve_unknown`` for each level: ``hull``; ``lp`` on every survivor after the
-search; ``lp`` during the search (after each branch point while few hypotheses live)."""
+search; ``lp`` during the search (on every ambiguous node of the first 50 decisions, small
+logs included: run it inside :func:`search_level`)."""
+
+
+@contextmanager
+def search_level(level: str) -> Iterator[None]:
+    """Where a level of ``SEARCH_LEVELS`` needs it, the search's constants set for it:
+    ``lp-during`` narrows every ambiguous node, however few the decisions (by default only
+    logs of ``explorer.AMBIGUITY_LP_MIN_DECISIONS`` do, every ``AMBIGUITY_LP_GAP``)."""
+    if level != "lp-during":
+        yield
+        return
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(explorer, "AMBIGUITY_LP_MIN_DECISIONS", 0)
+        patch.setattr(explorer, "AMBIGUITY_LP_GAP", 1)
+        yield
+
+
 SENSOR_KINDS = ("none", "R", "F", "M", "RF", "RM", "FM", "RFM")
 """Sensor records: R = ``max_range``, F = ``fov``, M = ``nearest_margin``, and mixes."""
 
