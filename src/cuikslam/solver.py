@@ -192,8 +192,12 @@ def solve(
     else:
         solution = _solve_known(log, consistency, options.rtol, progress, deadline, options.threads)
     certify_limit = options.certify_limit
-    if n_poses > CERTIFY_MAX_POSES:
+    if n_poses > CERTIFY_MAX_POSES and certify_limit != 0 and solution.hypotheses:
         certify_limit = 0  # the witness search is a dense least-squares problem
+        solution.messages.append(
+            f"no witness search beyond {CERTIFY_MAX_POSES} poses (this log has {n_poses}): "
+            "the hypotheses stay 'not refuted', neither proven consistent nor impossible"
+        )
     certify_start = time.perf_counter()
     if log.outlier_bounds and certify_limit != 0:
         certify_without_outliers(log, solution, certify, deadline)
