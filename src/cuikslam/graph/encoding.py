@@ -31,7 +31,7 @@ from cuikslam._jit import jit
 
 __all__ = [
     "ANGLE", "KIND", "LENGTH", "NO_FACTOR", "N_SLOTS", "OBSERVATION", "ODOMETRY", "RELATIVE",
-    "ROTATION", "TA", "TB", "UNSEEN", "XA", "XB", "YA", "YB", "link_factor",
+    "ROTATION", "TA", "TB", "UNSEEN", "XA", "XB", "YA", "YB", "factors_on", "link_factor",
 ]  # fmt: skip
 
 ODOMETRY = 0
@@ -70,3 +70,25 @@ def link_factor(
         head[v] = n_entries
         n_entries += 1
     return n_entries
+
+
+@jit
+def factors_on(
+    variables: np.ndarray, head: np.ndarray, entry_factor: np.ndarray, entry_next: np.ndarray
+) -> np.ndarray:
+    """Every factor on one of ``variables`` (with repeats), by walking their adjacency lists."""
+    n = 0
+    for v in variables:
+        e = head[v]
+        while e >= 0:
+            n += 1
+            e = entry_next[e]
+    found = np.empty(n, dtype=np.int64)
+    n = 0
+    for v in variables:
+        e = head[v]
+        while e >= 0:
+            found[n] = entry_factor[e]
+            n += 1
+            e = entry_next[e]
+    return found

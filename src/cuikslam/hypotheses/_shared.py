@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cuikslam.graph.encoding import KIND, N_SLOTS, NO_FACTOR
+from cuikslam.graph.encoding import KIND, N_SLOTS, NO_FACTOR, factors_on
 from cuikslam.hypotheses import _kernels as k
 from cuikslam.hypotheses._gates import gate_many, pairs_within_reach
 from cuikslam.narrowing._factors import fresh_memory
@@ -139,13 +139,7 @@ class SharedGraph:
 
     def factors_of(self, variables: np.ndarray) -> np.ndarray:
         """Sorted pool rows (switched on or not) that involve any of ``variables``."""
-        found: set[int] = set()
-        for v in variables:
-            e = self.head[v]
-            while e >= 0:
-                found.add(int(self.entry_factor[e]))
-                e = self.entry_next[e]
-        return np.array(sorted(found), dtype=np.int64)
+        return np.unique(factors_on(variables, self.head, self.entry_factor, self.entry_next))
 
     # ------------------------------------------------------------- branch operations
     # Every operation names the branch (overlay) it works on; which one the working arrays

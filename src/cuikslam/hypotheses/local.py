@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from cuikslam._jit import jit
-from cuikslam.graph.encoding import ODOMETRY, XA, XB, YB
+from cuikslam.graph.encoding import ODOMETRY, XA, XB, YB, factors_on
 from cuikslam.hypotheses._shared import Overlay, SharedGraph, linked
 from cuikslam.narrowing.propagation import narrow
 
@@ -123,27 +123,18 @@ def window_rows(
     """
     for x in window:
         in_window[x] = True
-    count = 0
-    for x in window:
-        e = head[x]
-        while e >= 0:
-            count += 1
-            e = entry_next[e]
-    found = np.empty(count, dtype=np.int64)
+    on = factors_on(window, head, entry_factor, entry_next)
+    found = np.empty(on.shape[0], dtype=np.int64)
     n_found = 0
-    for x in window:
-        e = head[x]
-        while e >= 0:
-            f = entry_factor[e]
-            e = entry_next[e]
-            if kinds[f] == ODOMETRY and not (in_window[rows[f, XA]] and in_window[rows[f, XB]]):
-                continue  # a move to or from a pose outside the window
-            if not in_base[f]:
-                at = np.searchsorted(held, f)
-                if at >= held.shape[0] or held[at] != f:
-                    continue  # another branch's row
-            found[n_found] = f
-            n_found += 1
+    for f in on:
+        if kinds[f] == ODOMETRY and not (in_window[rows[f, XA]] and in_window[rows[f, XB]]):
+            continue  # a move to or from a pose outside the window
+        if not in_base[f]:
+            at = np.searchsorted(held, f)
+            if at >= held.shape[0] or held[at] != f:
+                continue  # another branch's row
+        found[n_found] = f
+        n_found += 1
     for x in window:
         in_window[x] = False
     picked = np.unique(found[:n_found])

@@ -286,25 +286,3 @@ def _event_order(positions: np.ndarray, steps: np.ndarray) -> np.ndarray:
                 n += 1
         j = t
     return out
-
-
-@jit
-def factors_on(
-    variables: np.ndarray, head: np.ndarray, entry_factor: np.ndarray, entry_next: np.ndarray
-) -> np.ndarray:
-    """Every factor on one of ``variables`` (with repeats), by walking their adjacency lists."""
-    n = 0
-    for v in variables:
-        e = head[v]
-        while e >= 0:
-            n += 1
-            e = entry_next[e]
-    found = np.empty(n, dtype=np.int64)
-    n = 0
-    for v in variables:
-        e = head[v]
-        while e >= 0:
-            found[n] = entry_factor[e]
-            n += 1
-            e = entry_next[e]
-    return found

@@ -31,11 +31,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cuikslam.budget import expired
-from cuikslam.graph.encoding import KIND, NO_FACTOR, TA
+from cuikslam.graph.encoding import KIND, NO_FACTOR, TA, factors_on
 from cuikslam.narrowing._relaxed import (
     RELAXED_INCONSISTENT,
     SHARED_SLOTS,
-    factors_on,
     member_contractions,
     relaxed_meet,
 )

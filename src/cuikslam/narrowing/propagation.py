@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
+from cuikslam.graph.encoding import factors_on
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.narrowing._propagate import (
     BUDGET_EXHAUSTED,
@@ -62,12 +63,8 @@ class Arrays:
 
     def factors_of(self, variable: int) -> np.ndarray:
         """The factors on ``variable`` (by walking its adjacency list)."""
-        found = []
-        e = self.head[variable]
-        while e >= 0:
-            found.append(self.entry_factor[e])
-            e = self.entry_next[e]
-        return np.array(found, dtype=np.int64)
+        variables = np.array([variable], dtype=np.int64)
+        return factors_on(variables, self.head, self.entry_factor, self.entry_next)
 
 
 @dataclass
