@@ -273,11 +273,11 @@ class Explorer:
         self.stats.ambiguity_lp += 1
         self.stats.ambiguity_lp_seconds += time.perf_counter() - started
         self.stats.operator_applications += applications
+        self.stats.created -= len(out)  # replaced (or refuted with the node): never explored
         if overlay is None:
             self.stats.refuted_by_consistency += 1
             return [], options
-        self.stats.branch_points -= 1  # the same node, expanded again: its first
-        self.stats.created -= len(out)  # children are replaced, never explored
+        self.stats.branch_points -= 1  # the same node, expanded again
         kids, options = self._children(replace(node, overlay=overlay))
         gap = AMBIGUITY_LP_GAP if len(kids) < len(out) else 2 * node.lp_gap
         return [replace(c, lp_depth=node.depth, lp_gap=gap) for c in kids], options
