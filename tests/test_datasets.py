@@ -12,6 +12,7 @@ import pytest
 import scipy.io
 
 from _exact import angle_inside, mpf
+from _litw import write_synthetic as _synthetic
 from cuikslam.cli.main import main
 from cuikslam.datasets import data_dir, read_lost_in_the_woods
 from cuikslam.graph.kinematic_graph import KinematicGraph
@@ -20,8 +21,6 @@ from cuikslam.log.errors import LogFormatError
 from cuikslam.log.writer import write_log_file
 from cuikslam.narrowing.propagation import Status, propagate
 from cuikslam.results.solution import check_truth
-
-LASER = 0.219
 
 
 def _dataset() -> Path:
@@ -40,48 +39,6 @@ def _inside(value: float, bounds: tuple[float, float], *, angle: bool = False) -
     if angle:
         return angle_inside(lo, hi, mpf(value))
     return lo <= value <= hi
-
-
-def _synthetic(path: Path, n: int = 120, gap: tuple[int, int] = (40, 60), seed: int = 0) -> None:
-    """A small recording in the dataset's layout: a robot driving arcs among 5 posts at
-    10 Hz, the wheels along the heading + DRIVE_OFFSET, speed and turn rate constant over
-    each sample (so the arcs are exact), odometry and laser readings with small noise, and
-    a Vicon gap over the samples ``gap``."""
-    rng = np.random.default_rng(seed)
-    drive = -0.079
-    t = np.arange(n) * 0.1
-    v = 0.3 + 0.1 * np.sin(t)
-    om = 0.4 * np.cos(0.5 * t)
-    x, y, th = np.zeros(n), np.zeros(n), np.zeros(n)
-    for k in range(n - 1):
-        a, b = th[k] + drive, th[k] + drive + om[k] * 0.1
-        x[k + 1] = x[k] + v[k] / om[k] * (math.sin(b) - math.sin(a))
-        y[k + 1] = y[k] - v[k] / om[k] * (math.cos(b) - math.cos(a))
-        th[k + 1] = th[k] + om[k] * 0.1
-    posts = np.array([[1.0, 2.0], [3.0, -1.0], [-2.0, 1.5], [2.5, 3.0], [0.5, -2.5]])
-    r, b = np.zeros((n, len(posts))), np.zeros((n, len(posts)))
-    for k in range(n):
-        sx, sy = x[k] + LASER * math.cos(th[k]), y[k] + LASER * math.sin(th[k])
-        for j, (px, py) in enumerate(posts):
-            rho = math.hypot(px - sx, py - sy)
-            beta = math.remainder(math.atan2(py - sy, px - sx) - th[k], 2 * math.pi)
-            if rho < 4.0 and abs(beta) < 1.5:
-                r[k, j] = rho + rng.uniform(-0.05, 0.05)
-                b[k, j] = beta + rng.uniform(-0.05, 0.05)
-    valid = np.ones(n)
-    valid[gap[0] : gap[1]] = 0
-    scipy.io.savemat(
-        path,
-        {
-            "t": t[:, None], "v": (v + rng.uniform(-0.02, 0.02, n))[:, None],
-            "om": (om + rng.uniform(-0.02, 0.02, n))[:, None], "r": r, "b": b, "l": posts,
-            "x_true": x[:, None], "y_true": y[:, None],
-            "th_true": np.remainder(th + math.pi, 2 * math.pi)[:, None] - math.pi,
-            "true_valid": valid[:, None], "d": np.array([[LASER]]),
-            "r_var": np.array([[1e-3]]), "b_var": np.array([[1e-3]]),
-            "v_var": np.array([[1e-4]]), "om_var": np.array([[1e-4]]),
-        },
-    )  # fmt: skip
 
 
 def test_synthetic_whole_run_holds_the_truth(tmp_path):

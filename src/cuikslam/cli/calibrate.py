@@ -48,6 +48,9 @@ def add_calibrate_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=_cmd_calibrate_mrclam)
 
+    from cuikslam.cli.lost_in_the_woods import add_litw_calibrate_parser
+
+    add_litw_calibrate_parser(datasets)
     p = datasets.add_parser(
         "check",
         help="count the measurements of a log whose interval misses the truth",
@@ -162,4 +165,9 @@ def _cmd_check(args: argparse.Namespace) -> int:
             print(f"  … {len(found.details) - 20} more (--json lists them all)")
         if verdict is not None:
             print(verdict)
+            if found.observations_unchecked:
+                print(
+                    f"  ({found.observations_unchecked} observations from an uncertain sensor "
+                    "offset were not checked: the verdict covers the others)"
+                )
     return 0

@@ -26,7 +26,6 @@ if TYPE_CHECKING:
 
 __all__ = [
     "cmd_evaluate",
-    "cmd_import",
     "cmd_paper",
     "cmd_plot",
     "cmd_simulate",
@@ -182,29 +181,6 @@ def write_log_and_truth(log, truth, out: Path, truth_out: Path, *, quiet: bool) 
             f"{len(log.observations)} observations) and its ground truth {truth_out}",
             file=sys.stderr,
         )
-
-
-def cmd_import(args: argparse.Namespace) -> int:
-    from cuikslam.datasets import read_lost_in_the_woods
-
-    out, truth_out = log_and_truth_outputs(args.output)
-    log, truth = read_lost_in_the_woods(
-        args.file,
-        start=args.start,
-        steps=args.steps,
-        keyframe=args.keyframe,
-        unknown=not args.known,
-        speed_bound=args.speed_bound,
-        turn_rate_bound=args.turn_rate_bound,
-        range_bound=args.range_bound,
-        bearing_bound=args.bearing_bound,
-        every_observation=not args.keyframe_observations,
-    )
-    from cuikslam.cli.mrclam import declare_outliers
-
-    declare_outliers(log, args, not args.known)
-    write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)
-    return EXIT_OK
 
 
 def cmd_plot(args: argparse.Namespace) -> int:

@@ -24,7 +24,6 @@ from cuikslam.budget import (
 from cuikslam.cli._common import EXIT_INPUT, CommandError
 from cuikslam.cli.commands import (
     cmd_evaluate,
-    cmd_import,
     cmd_paper,
     cmd_plot,
     cmd_simulate,
@@ -261,56 +260,9 @@ def build_parser() -> argparse.ArgumentParser:
     from cuikslam.cli.mrclam import add_mrclam_parser
 
     add_mrclam_parser(datasets)
-    p = datasets.add_parser(
-        "lost-in-the-woods",
-        help="a window of UTIAS Lost in the Woods (dataset2.mat)",
-        description="Convert a window of Lost in the Woods to a log and NAME.truth.json.",
-    )
-    p.add_argument("file", help="the dataset file (dataset2.mat)")
-    p.add_argument("-o", "--output", required=True, help="log file to write (.jsonl)")
-    p.add_argument("--start", type=int, default=0, help="first sample (default 0)")
-    p.add_argument(
-        "--steps", type=_positive_int, default=None, help="samples (default: to the end)"
-    )
-    p.add_argument(
-        "--keyframe",
-        "--stride",
-        type=_positive_int,
-        default=10,
-        help="samples per pose; the odometry between is composed (default 10)",
-    )
-    p.add_argument("--known", action="store_true", help="keep landmark ids (known correspondence)")
-    p.add_argument(
-        "--speed-bound",
-        type=_positive_float,
-        default=None,
-        help="per-sample speed error bound [m/s] (default 3 sd of the file's v_var)",
-    )
-    p.add_argument(
-        "--turn-rate-bound",
-        type=_positive_float,
-        default=None,
-        help="per-sample turn-rate error bound [rad/s] (default 3 sd of the file's om_var)",
-    )
-    p.add_argument(
-        "--range-bound", type=_positive_float, default=0.16, help="range bound [m] (default 0.16)"
-    )
-    p.add_argument(
-        "--bearing-bound",
-        type=_positive_float,
-        default=0.15,
-        help="bearing bound [rad] (default 0.15)",
-    )
-    p.add_argument(
-        "--keyframe-observations",
-        action="store_true",
-        help="keep only the observations made at a keyframe sample",
-    )
-    from cuikslam.cli.mrclam import add_outlier_options
+    from cuikslam.cli.lost_in_the_woods import add_litw_import_parser
 
-    add_outlier_options(p)
-    p.add_argument("-q", "--quiet", action="store_true")
-    p.set_defaults(func=cmd_import)
+    add_litw_import_parser(datasets)
 
     p = sub.add_parser("plot", help="draw a result JSON", description="Draw the boxes of a result.")
     p.add_argument("result", help="result JSON written by `cuikslam solve --json`")

@@ -93,6 +93,8 @@ def _round_up(value: float) -> float:
     """``value`` rounded up to 3 significant digits (a bound never shrinks)."""
     if value <= 0:
         return 0.0
+    if value < 1e-300:  # 3 significant digits would underflow
+        return 1e-300
     step = 10.0 ** (math.floor(math.log10(value)) - 2)
     rounded = float(f"{math.ceil(value / step) * step:.3g}")
     while rounded < value:

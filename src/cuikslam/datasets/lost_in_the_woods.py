@@ -33,22 +33,27 @@ from __future__ import annotations
 
 import math
 import os
+from typing import Literal
 
 import numpy as np
 
+from cuikslam.datasets._litw_file import load_dataset
+from cuikslam.datasets.lost_in_the_woods_bounds import DRIVE_OFFSET, LitwBounds, nominal_move
 from cuikslam.errors import InputFileError
-from cuikslam.log.records import Bounds, Log, Observation, PosePrior, Record, RelativePose
-from cuikslam.motion import compose_relative, compose_steps
+from cuikslam.log.records import (
+    Bounds,
+    ClassPrior,
+    Log,
+    Observation,
+    PosePrior,
+    Record,
+    RelativePose,
+)
+from cuikslam.motion import RelativeBounds, compose_relative, compose_steps
 from cuikslam.simulate.truth import GroundTruth
 
 __all__ = ["read_lost_in_the_woods"]
 
-_VARIABLES = (
-    "t", "v", "om", "r", "b", "l", "x_true", "y_true", "th_true", "true_valid", "d",
-    "v_var", "om_var",
-)  # fmt: skip
-DRIVE_OFFSET = -0.079
-"""Angle [rad] from the Vicon heading to the direction the wheels drive (measured)."""
 DRIVE_MARGIN = 0.03
 """Half-width [rad] of the drive-angle interval around ``DRIVE_OFFSET``."""
 RANGE_BOUND = 0.16
@@ -70,10 +75,13 @@ def read_lost_in_the_woods(
     unknown: bool = True,
     speed_bound: float | None = None,
     turn_rate_bound: float | None = None,
-    range_bound: float = RANGE_BOUND,
-    bearing_bound: float = BEARING_BOUND,
+    range_bound: float | None = None,
+    bearing_bound: float | None = None,
     drive_angle: Bounds = (DRIVE_OFFSET - DRIVE_MARGIN, DRIVE_OFFSET + DRIVE_MARGIN),
     every_observation: bool = True,
+    bounds: LitwBounds | None = None,
+    posts_at_most: int | Literal["file"] | None = None,
+    post_separation: float | None = None,
 ) -> tuple[Log, GroundTruth]:
     """Import samples ``start .. start + steps`` of ``dataset2.mat`` (default: to the end).
 
@@ -87,14 +95,24 @@ def read_lost_in_the_woods(
         Drop the landmark ids (``P0..P16``): unknown correspondence.
     speed_bound, turn_rate_bound : float, optional
         Per-sample odometry error bounds [m/s, rad/s]; default three standard deviations
-        of the file's ``v_var`` and ``om_var``.
-    range_bound, bearing_bound : float
-        Observation error bounds [m, rad].
+        of the file's ``v_var`` and ``om_var``. Not with ``bounds``.
+    range_bound, bearing_bound : float, optional
+        Observation error bounds [m, rad]; default those of ``bounds``, else
+        ``RANGE_BOUND`` and ``BEARING_BOUND``.
     drive_angle : (float, float)
         Angle from the heading to the direction the wheels drive [rad].
     every_observation : bool
         Keep the observations made between keyframes (from an offset sensor pose); with
         False only those made at a keyframe sample are kept.
+    bounds : LitwBounds, optional
+        Bounds calibrated on a part of the run
+        (:func:`~.lost_in_the_woods_bounds.calibrate_lost_in_the_woods`): each stretch of
+        odometry is its readings composed at face value, widened by the calibrated motion
+        model, instead of the per-sample bounds composed soundly.
+    posts_at_most, post_separation : optional
+        A ``class`` record for the posts: at most this many (``"file"``: as many as the
+        file's map has, 17), and two at least this far apart [m]; priors a user of the
+        arena knows, which the correspondence search uses to refute hypotheses.
 
     Returns
     -------
@@ -107,7 +125,18 @@ def read_lost_in_the_woods(
         If the file cannot be read, lacks a variable, or the window is empty, leaves the
         recording, or has no valid Vicon pose (the prior needs one).
     """
-    data = _load(path)
+    if bounds is not None and (speed_bound is not None or turn_rate_bound is not None):
+        raise ValueError("per-sample odometry bounds and calibrated bounds exclude each other")
+    if bounds is not None and keyframe > bounds.max_samples:
+        raise InputFileError(
+            path, None, f"keyframes of {keyframe} samples, but the bounds were calibrated on "
+            f"stretches of at most {bounds.max_samples} (calibrate with --keyframe {keyframe})",
+        )  # fmt: skip
+    if range_bound is None:
+        range_bound = RANGE_BOUND if bounds is None else bounds.range
+    if bearing_bound is None:
+        bearing_bound = BEARING_BOUND if bounds is None else bounds.bearing
+    data = load_dataset(path)
     t = data["t"].ravel().astype(float)
     n_samples = t.size
     end = n_samples - 1 if steps is None else start + steps
@@ -137,8 +166,22 @@ def read_lost_in_the_woods(
     om_box = np.stack([om - turn_rate_bound, om + turn_rate_bound], axis=-1)
     mount = ((d, d), (0.0, 0.0), (0.0, 0.0))
 
+    def motion(a: int, j: int) -> RelativeBounds:
+        """The robot's motion from sample ``a`` to sample ``j``."""
+        if bounds is None:
+            return compose_steps(v_box[a:j], om_box[a:j], t[a : j + 1], drive_angle)
+        if j == a:
+            return ((0.0, 0.0), (0.0, 0.0), (0.0, 0.0))
+        centre, travelled, turned = nominal_move(v[a:j], om[a:j], t[a : j + 1])
+        half = bounds.motion(travelled, turned)
+        return tuple(_widen(c, h) for c, h in zip(centre, half, strict=True))
+
     keys = sorted({*range(start, end, keyframe), first_truth, end})
     records: list[Record] = []
+    if posts_at_most == "file":
+        posts_at_most = len(posts)
+    if posts_at_most is not None or post_separation is not None:
+        records.append(ClassPrior("post", at_most=posts_at_most, min_separation=post_separation))
     if first_truth > start:
         # before the first Vicon pose the robot is only known to be near the posts
         lo, hi = posts.min(axis=0) - ARENA_MARGIN, posts.max(axis=0) + ARENA_MARGIN
@@ -149,8 +192,7 @@ def read_lost_in_the_woods(
     for i, k in enumerate(keys):
         if i > 0:
             a = keys[i - 1]
-            move = compose_steps(v_box[a:k], om_box[a:k], t[a : k + 1], drive_angle)
-            records.append(RelativePose(i - 1, i, *move))
+            records.append(RelativePose(i - 1, i, *motion(a, k)))
         if k == first_truth:
             records.append(_prior(i, k, x, y, theta))
         if valid[k]:
@@ -161,8 +203,7 @@ def read_lost_in_the_woods(
             seen = np.flatnonzero(ranges[j] > 0)
             if seen.size == 0:
                 continue
-            motion = compose_steps(v_box[k:j], om_box[k:j], t[k : j + 1], drive_angle)
-            offset = compose_relative([motion, mount])
+            offset = compose_relative([motion(k, j), mount])
             for p in seen:
                 r, b = float(ranges[j, p]), float(bearings[j, p])
                 records.append(
@@ -198,18 +239,6 @@ def _prior(pose: int, k: int, x: np.ndarray, y: np.ndarray, theta: np.ndarray) -
     )
 
 
-def _load(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
-    import scipy.io
-
-    try:
-        data = scipy.io.loadmat(os.fspath(path))
-    except FileNotFoundError:
-        raise InputFileError(path, None, "no such file (expected dataset2.mat)") from None
-    except Exception as exc:  # scipy raises several types for a non-MAT file
-        raise InputFileError(path, None, f"cannot read MATLAB file: {exc}") from None
-    missing = [name for name in _VARIABLES if name not in data]
-    if missing:
-        raise InputFileError(
-            path, None, f"not a Lost-in-the-Woods file: lacks variable(s) {', '.join(missing)}"
-        )
-    return data
+def _widen(centre: float, half: float) -> Bounds:
+    """``centre ± half``, rounded outward."""
+    return (math.nextafter(centre - half, -math.inf), math.nextafter(centre + half, math.inf))
