@@ -493,3 +493,21 @@ def test_width_panel_of_a_very_long_run_shows_the_largest_width_per_bin():
     assert math.isnan(y_line.get_ydata()[n // 3 // 2])  # the bin with an unbounded side
     assert theta_line.get_ydata()[n // 2 // 2] == 2 * math.pi
     assert ax.get_xlim() == (0, n - 1)
+
+
+def test_long_solution_zooms_on_its_widest_stretch():
+    from cuikslam.results.figures.geometry import ZOOM_POSES, widest_stretch
+
+    n = 400
+    h = make_long_hypothesis(n)
+    part = widest_stretch(h)
+    assert part.stop - part.start == ZOOM_POSES and part.start <= 2 * n // 3 < part.stop
+    fig = plot_solution(Solution([h], consistency="hull"))
+    (zoom,) = [ax for ax in fig.axes if ax.get_title().startswith("the widest stretch")]
+    first, last = 100 + part.start, 100 + part.stop - 1
+    assert zoom.get_title() == f"the widest stretch: poses {first}–{last}"
+    boxes = [p for p in zoom.patches if isinstance(p, Rectangle)]
+    assert len(boxes) == ZOOM_POSES + 1  # every pose box of the stretch, and the landmark
+    # an unbounded pose counts as the widest finite one: the zoom still has boxes to show
+    h.poses[:, :2] = np.where(np.arange(n)[:, None, None] == 7, [-np.inf, np.inf], h.poses[:, :2])
+    assert widest_stretch(h).start <= 2 * n // 3 < widest_stretch(h).stop

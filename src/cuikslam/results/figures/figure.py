@@ -26,6 +26,7 @@ from cuikslam.results.figures.geometry import (
     _union_extent,
     drawn_poses,
     scene_extent,
+    widest_stretch,
 )
 from cuikslam.results.solution import Hypothesis, Solution
 
@@ -149,13 +150,10 @@ def plot_solution(
         height = min(max(5.3 * aspect, 3.0), 9.0) + 1.4
         long_run = bool(shown) and len(shown[0].pose_ids) > WIDTH_PANEL_POSES
         if long_run:
-            fig, (ax, aw) = plt.subplots(
-                2,
-                1,
-                figsize=figsize or (8.0, height + 2.6),
-                layout="constrained",
-                height_ratios=(height, 2.2),
-            )
+            fig = plt.figure(figsize=figsize or (8.0, height + 3.2), layout="constrained")
+            grid = fig.add_gridspec(2, 2, height_ratios=(height, 2.8), width_ratios=(3, 2))
+            ax = fig.add_subplot(grid[0, :])
+            aw, az = fig.add_subplot(grid[1, 0]), fig.add_subplot(grid[1, 1])
         else:
             fig = plt.figure(figsize=figsize or (8.0, height), layout="constrained")
             ax = fig.add_subplot()
@@ -165,6 +163,7 @@ def plot_solution(
             plot_hypothesis_on_axes(ax, shown[0], truth, title=title, class_colors=colors)
         if long_run:
             plot_widths_on_axes(aw, shown[0], title="pose box widths along the run")
+            _zoom(az, shown[0], truth, colors)
         else:
             if truth is not None:
                 _draw_truth(ax, truth, 0.8 * FAN_RADIUS * (extent[1] - extent[0]), None, None)
@@ -229,6 +228,24 @@ def plot_solution(
     )
     fig.suptitle(_suptitle(solution, len(shown)))
     return fig
+
+
+def _zoom(ax, hypothesis: Hypothesis, truth: GroundTruth | None, colors: dict) -> None:
+    """The widest stretch of a long run, every box drawn, at its own scale."""
+    from dataclasses import replace
+
+    part = widest_stretch(hypothesis)
+    stretch = replace(hypothesis, pose_ids=hypothesis.pose_ids[part], poses=hypothesis.poses[part])
+    points = []
+    if truth is not None:
+        ids = set(stretch.pose_ids)
+        points.append([p for i, p in zip(truth.pose_ids, truth.poses_xyt, strict=True) if i in ids])
+    extent = scene_extent([stretch.poses], points)
+    first, last = stretch.pose_ids[0], stretch.pose_ids[-1]
+    plot_hypothesis_on_axes(
+        ax, stretch, truth, title=f"the widest stretch: poses {first}–{last}", legend=False,
+        extent=extent, class_colors=colors, max_pose_boxes=None, show_labels=False,
+    )  # fmt: skip
 
 
 def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = 150) -> None:

@@ -17,7 +17,15 @@ from cuikslam.results.solution import Hypothesis
 if TYPE_CHECKING:
     from cuikslam.simulate.truth import GroundTruth
 
-__all__ = ["MAX_POSE_BOXES", "Extent", "drawn_poses", "pose_widths", "scene_extent"]
+__all__ = [
+    "MAX_POSE_BOXES",
+    "ZOOM_POSES",
+    "Extent",
+    "drawn_poses",
+    "pose_widths",
+    "scene_extent",
+    "widest_stretch",
+]
 
 Extent = tuple[float, float, float, float]
 """``(x_min, x_max, y_min, y_max)`` in metres."""
@@ -26,6 +34,8 @@ _PAD = 0.06
 """Margin added around the finite bounds, as a fraction of the larger side."""
 MAX_POSE_BOXES = 150
 """Beyond this many poses, every k-th pose box is drawn (and the widest), not all."""
+ZOOM_POSES = 30
+"""Consecutive poses in the zoom on a long run's widest stretch (every box drawn)."""
 
 
 def _xy_boxes(boxes: np.ndarray | Sequence[Any]) -> np.ndarray:
@@ -141,3 +151,17 @@ def pose_widths(hypothesis: Hypothesis) -> np.ndarray:
         widths = boxes[..., 1] - boxes[..., 0]
     widths[:, 2] = np.minimum(widths[:, 2], 2 * math.pi)
     return widths
+
+
+def widest_stretch(hypothesis: Hypothesis, size: int = ZOOM_POSES) -> slice:
+    """The ``size`` consecutive poses whose position boxes are widest in total (the wider
+    of x and y per pose; an unbounded one counts as the widest finite width, so that the
+    zoom still has boxes to show)."""
+    widths = pose_widths(hypothesis)[:, :2].max(axis=1)
+    finite = np.isfinite(widths)
+    cap = float(widths[finite].max()) if finite.any() else 1.0
+    widths = np.where(finite, widths, cap)
+    size = min(size, len(widths))
+    totals = np.convolve(widths, np.ones(size), mode="valid")
+    start = int(np.argmax(totals))
+    return slice(start, start + size)
