@@ -78,7 +78,12 @@ class LitwBounds:
         missing = [f.name for f in fields(cls) if f.name not in values]
         if missing:
             raise InputFileError(path, None, f"the bounds file lacks {', '.join(missing)}")
-        return cls(**{**values, "max_samples": int(values["max_samples"])})
+        samples = values["max_samples"]
+        if samples != int(samples) or samples < 1:
+            raise InputFileError(
+                path, None, f"max_samples must be a whole number >= 1, got {samples}"
+            )
+        return cls(**{**values, "max_samples": int(samples)})
 
     def motion(self, travelled: float, turned: float) -> tuple[float, float, float]:
         """Half-widths (x, y, theta) around the nominal move of a stretch."""
