@@ -299,16 +299,24 @@ def test_a_relaxed_member_never_narrows_alone() -> None:
     assert math.isinf(solution.best.landmark("B")[0, 0])
 
 
-def test_outliers_need_known_correspondence() -> None:
-    from cuikslam.errors import InputFileError
-
-    log = _log(
-        PRIOR,
-        '{"type": "outliers", "at_most": 1}',
-        '{"type": "observation", "pose": 0, "class": "post", "range": [2, 2.1]}',
+def test_named_observations_of_a_mixed_log_keep_the_relaxed_intersection() -> None:
+    """Unknown correspondence with a named observation that misses its landmark: the named
+    one is proven an outlier at the root (q-relaxed intersection, the whole declaration),
+    the unlabelled one may be an outlier in the search (the whole declaration too)."""
+    unlabelled = (
+        '{"type": "observation", "pose": 0, "class": "post", "range": [2, 2.1], '
+        '"bearing": [0, 0.1]}'
     )
-    with pytest.raises(InputFileError, match=r"t\.jsonl:2: an outliers record needs known"):
-        solve(log, consistency="hull", time_budget=None)
+    declared = '{"type": "outliers", "at_most": 1}'
+    log = _log(PRIOR, declared, MARK, _sighting(0, (9.0, 9.5)), unlabelled)
+    solution = solve(log, consistency="hull", time_budget=None)
+    assert [p["observation"] for p in solution.outliers["proven"]] == [0]
+    assignments = sorted(h.assignment for h in solution.hypotheses)
+    assert assignments == [["A", "N1"], ["A", "outlier"]]
+    declared = '{"type": "outliers", "at_most": 0}'
+    log = _log(PRIOR, declared, MARK, _sighting(0, (9.0, 9.5)), unlabelled)
+    solution = solve(log, consistency="hull", time_budget=None)
+    assert solution.refuted and solution.outliers["exceeded"]
 
 
 @settings(max_examples=300, deadline=None, derandomize=True, suppress_health_check=HEALTH)

@@ -114,15 +114,19 @@ def test_more_outliers_than_declared_exits_1(tmp_path: Path) -> None:
     assert "inconsistent with its outliers declaration (at most 0 in all)" in result.stdout
 
 
-def test_outliers_with_unknown_correspondence_exit_2(tmp_path: Path) -> None:
+def test_outlier_named_landmark_with_unknown_correspondence_exit_2(tmp_path: Path) -> None:
+    """With unknown correspondence "outlier" marks outliers in assignments: a landmark of
+    that name is refused, naming its line."""
     _write(
         tmp_path,
         PRIOR,
         '{"type": "outliers", "at_most": 1}',
         '{"type": "observation", "pose": 0, "class": "post", "range": [2, 2.1]}',
+        '{"type": "observation", "pose": 0, "class": "post", "range": [3, 3.1], '
+        '"landmark": "outlier"}',
     )
     result = run("solve", "trip.jsonl", cwd=tmp_path)
-    assert_input_error(result, "trip.jsonl:2:", "an outliers record needs known correspondence")
+    assert_input_error(result, "trip.jsonl:4:", 'landmark id "outlier" is reserved')
 
 
 def test_a_bad_outliers_record_exits_2(tmp_path: Path) -> None:
@@ -193,7 +197,7 @@ def test_import_mrclam_declares_outliers(tmp_path: Path, capsys) -> None:
     solution = solve(log, consistency="hull", time_budget=None)  # and it solves with them
     assert solution.outliers["declared"][1] == {"at_most": 1, "window": 5, "line": 2}
     capsys.readouterr()
-    assert main([*base, "--unknown", "--outliers", "2"]) == 2
-    assert "--outliers needs known correspondence" in capsys.readouterr().err
+    assert main([*base, "--unknown", "--outliers", "2"]) == 0  # the search's outlier option
+    assert [b.at_most for b in read_log_file(out).outlier_bounds] == [2]
     assert main([*base, "--outliers-window", "1", "0"]) == 2
     assert "W must be at least 1 pose" in capsys.readouterr().err

@@ -1,5 +1,5 @@
-"""Declared outliers in a log with known correspondence: the glue between the log and
-:mod:`cuikslam.narrowing.outliers`.
+"""Declared outliers: the glue between the log and :mod:`cuikslam.narrowing.outliers`
+(known correspondence) or :mod:`cuikslam.hypotheses.outlier_option` (unknown).
 
 A log may say, with ``outliers`` records (``docs/log-format.md``), that at most q of its
 observations miss their truth, in all and/or in each block of ``window`` poses. The boxes
@@ -29,18 +29,21 @@ from cuikslam.log.records import (
     RelativePose,
 )
 from cuikslam.narrowing.outliers import NO_LIMIT, OutlierScope, RelaxedReport
-from cuikslam.results.solution import Solution
+from cuikslam.results.solution import OUTLIER, Hypothesis, Solution
 
 __all__ = [
     "LISTED",
     "certify_without_outliers",
     "check_declaration",
     "evaluation_note",
+    "hypothesis_outlier_messages",
+    "hypothesis_outliers",
     "outlier_messages",
     "outlier_scope",
     "outliers_to_json",
     "pose_order",
     "reject_unknown",
+    "search_outliers_json",
 ]
 
 LISTED = 10
@@ -48,22 +51,68 @@ LISTED = 10
 
 
 def reject_unknown(log: Log) -> None:
-    """Refuse an ``outliers`` record in a log with unknown correspondence.
+    """Refuse a log with unknown correspondence and an ``outliers`` record that names a
+    landmark ``"outlier"``: in its hypotheses' assignments that word marks an outlier.
 
     Raises
     ------
     InputFileError
-        Naming the log and the line of the first ``outliers`` record.
+        Naming the log and the line of the first record naming that landmark.
     """
-    bounds = log.outlier_bounds
-    if bounds and log.has_unknown_correspondence:
-        raise InputFileError(
-            log.path,
-            bounds[0].line,
-            "an outliers record needs known correspondence (every observation names its "
-            "landmark); with unknown correspondence outliers are not supported yet: remove "
-            "the record or name the landmarks",
+    if not log.outlier_bounds or not log.has_unknown_correspondence:
+        return
+    for record in log.records:
+        if getattr(record, "landmark", None) == OUTLIER:
+            raise InputFileError(
+                log.path,
+                getattr(record, "line", 0),
+                f'landmark id "{OUTLIER}" is reserved in a log with an outliers record and '
+                "unknown correspondence (assignments mark outliers with it): rename it",
+            )
+
+
+def search_outliers_json(
+    log: Log, named_positions: list[int], report: RelaxedReport | None
+) -> dict[str, Any] | None:
+    """The result JSON's ``outliers`` of a correspondence search: the declaration and the
+    named observations proven outliers at the root (``report``: members in the order of
+    ``named_positions``); None when the log declares none."""
+    if not log.outlier_bounds:
+        return None
+    mapped = RelaxedReport(
+        proven=[named_positions[i] for i in (report.proven if report else [])],
+        exceeded=bool(report and report.exceeded),
+    )
+    return outliers_to_json(log, mapped)
+
+
+def hypothesis_outliers(log: Log, hypothesis: Hypothesis) -> list[dict[str, Any]]:
+    """The observations ``hypothesis`` takes as outliers: index (log order), line, pose."""
+    observations = log.observations
+    return [
+        {"observation": i, "line": observations[i].line, "pose": observations[i].pose}
+        for i in hypothesis.outliers
+    ]
+
+
+def hypothesis_outlier_messages(log: Log, solution: Solution) -> list[str]:
+    """Each reported hypothesis' outliers in words (the first ``LISTED`` hypotheses); also
+    puts them in ``solution.outliers['hypotheses']`` (one list per reported hypothesis,
+    in the report's order)."""
+    if solution.outliers is None:
+        return []
+    listed = [hypothesis_outliers(log, h) for h in solution.hypotheses]
+    solution.outliers["hypotheses"] = listed
+    lines = []
+    for rank, found in enumerate(listed[:LISTED], start=1):
+        if not found:
+            continue
+        where = ", ".join(f"line {o['line']} (pose {o['pose']})" for o in found[:LISTED])
+        more = f" and {len(found) - LISTED} more" if len(found) > LISTED else ""
+        lines.append(
+            f"hypothesis {rank} takes {len(found)} observation(s) as outliers: {where}{more}"
         )
+    return lines
 
 
 def pose_order(log: Log) -> dict[int, int]:
@@ -211,7 +260,8 @@ def certify_without_outliers(
     """
     if not solution.hypotheses or solution.outliers is None:
         return
-    proven = {p["observation"] for p in solution.outliers["proven"]}
+    best = solution.hypotheses[0]
+    proven = {p["observation"] for p in solution.outliers["proven"]} | set(best.outliers)
     records = []
     k = -1
     for record in log.records:
@@ -222,24 +272,24 @@ def certify_without_outliers(
         if not isinstance(record, OutlierBound):
             records.append(record)
     reduced = Log(records=records, path=log.path)
-    best = solution.hypotheses[0]
-    named = {o.landmark for o in reduced.observations} | {
-        p.landmark for p in reduced.landmark_priors
-    }
+    trial = replace(best, assignment=[a for i, a in enumerate(best.assignment) if i not in proven])
+    named = set(trial.assignment) | {p.landmark for p in reduced.landmark_priors}
     if not set(best.landmark_ids) <= named:
         solution.messages.append(
             "not certified: a landmark is seen only by proven outliers, so the hypothesis "
             "stays 'not refuted'"
         )
         return
-    trial = replace(best, assignment=[a for i, a in enumerate(best.assignment) if i not in proven])
     alone = replace(solution, hypotheses=[trial], messages=[], statistics={}, timings={})
     certify(reduced, alone, deadline=deadline)
     best.status, best.witness = trial.status, trial.witness
     solution.statistics.update(alone.statistics)
     solution.messages.extend(alone.messages)
     if proven and best.witness is not None:
+        assumed = len(best.outliers)  # taken as outliers by the hypothesis itself
+        parts = [f"{len(proven) - assumed} proven outlier(s)"] if len(proven) > assumed else []
+        parts += [f"{assumed} observation(s) it takes as outliers"] if assumed else []
+        what = " and the ".join(parts)
         solution.messages.append(
-            f"the witness leaves out the {len(proven)} proven outlier(s) and meets every "
-            "other constraint"
+            f"the witness leaves out the {what} and meets every other constraint"
         )

@@ -25,6 +25,7 @@ from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
 from cuikslam.options import SolveOptions
 from cuikslam.outliers import (
     certify_without_outliers,
+    hypothesis_outlier_messages,
     outlier_messages,
     outlier_scope,
     outliers_to_json,
@@ -168,7 +169,7 @@ def solve(
     incomplete search, each with a message in ``Solution.messages``.
     """
     options = (options or SolveOptions()).replace(**overrides)
-    reject_unknown(log)  # outliers with unknown correspondence: not supported yet
+    reject_unknown(log)  # the landmark id "outlier" is reserved there
     ensure_round_to_nearest()
     unknown = log.has_unknown_correspondence
     lp = options.consistency.value != "hull" or (unknown and options.strengthen_during != 0)
@@ -205,6 +206,9 @@ def solve(
     certified = replace(solution, hypotheses=solution.hypotheses[:certify_limit])
     certify(log, certified, deadline=deadline)
     solution.hypotheses[:certify_limit] = certified.hypotheses  # proven ones now rank first
+    if unknown and solution.outliers is not None:  # in the report's final order
+        solution.messages.extend(outlier_messages(solution.outliers))
+        solution.messages.extend(hypothesis_outlier_messages(log, solution))
     solution.timings["certify_s"] = time.perf_counter() - certify_start
     solution.timings["total_s"] = time.perf_counter() - start
     solution.timings["warm_up_s"] = warm_up_s

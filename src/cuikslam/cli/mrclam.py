@@ -74,7 +74,7 @@ def add_outlier_options(p: argparse.ArgumentParser) -> None:
         type=_whole,
         metavar="Q",
         help="declare in the log that at most Q observations in all miss their truth "
-        "(needs known correspondence)",
+        "(with --unknown: one more option per observation in the search, 'outlier')",
     )
     p.add_argument(
         "--outliers-window",
@@ -98,8 +98,6 @@ def declare_outliers(log, args: argparse.Namespace, unknown: bool) -> None:
         if window < 1:
             raise CommandError("--outliers-window P W: W must be at least 1 pose")
         declared.append(OutlierBound(per_block, window))
-    if declared and unknown:
-        raise CommandError("--outliers needs known correspondence (landmark ids kept)")
     log.records[0:0] = declared
 
 

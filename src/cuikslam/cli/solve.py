@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from contextlib import contextmanager
 
 from rich.console import Console
@@ -17,6 +17,7 @@ from cuikslam.log.reader import read_log_file
 from cuikslam.options import SolveOptions
 from cuikslam.results.association import named_landmarks, truth_verdict
 from cuikslam.results.io import write_result_csv, write_result_file
+from cuikslam.results.measurement_check import check_log
 from cuikslam.results.overview import overview_lines
 from cuikslam.results.solution import Solution
 from cuikslam.results.table import hypothesis_table, summary_table
@@ -68,7 +69,8 @@ def print_solution(
             console.print(f"… {n - SUMMARY_ROWS:,} more hypotheses in the result files")
     shown = solution.hypotheses[: max_tables if table else 1]
     for rank, h in enumerate(shown, start=1):
-        title = f"Hypothesis {rank} of {n}: {h.n_landmarks} landmarks, {h.status}"
+        outliers = f"{len(h.outliers)} outliers, " if h.outliers else ""
+        title = f"Hypothesis {rank} of {n}: {h.n_landmarks} landmarks, {outliers}{h.status}"
         if table:
             console.print(hypothesis_table(h, title))
         else:
@@ -84,11 +86,15 @@ def print_solution(
 
 
 def report_truth(
-    solution: Solution, truth: GroundTruth, console: Console, named: set[str] = frozenset()
+    solution: Solution,
+    truth: GroundTruth,
+    console: Console,
+    named: set[str] = frozenset(),
+    outside: Collection[int] = (),
 ) -> bool:
     """Print :func:`~cuikslam.results.association.truth_verdict`; True when the guarantee
-    held."""
-    verdict = truth_verdict(solution, truth, named)
+    held (``outside``: the observations that miss their truth, the true outliers)."""
+    verdict = truth_verdict(solution, truth, named, outside)
     for line in verdict.lines:
         console.print(line)
     return verdict.ok
@@ -167,7 +173,12 @@ def run_solve(
         for message in solution.messages:
             console.print(message)
     status = 0
-    if truth is not None and not report_truth(solution, truth, console, named_landmarks(log)):
+    outside: list[int] = []  # with an outliers declaration, the true outliers
+    if truth is not None and log.outlier_bounds:
+        outside = check_log(log, truth).outside_observations
+    if truth is not None and not report_truth(
+        solution, truth, console, named_landmarks(log), outside
+    ):
         status = 1
     if solution.refuted:
         status = 1

@@ -31,6 +31,7 @@ from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import portion
 from cuikslam.hypotheses.bisection import Bisection, allotment, refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer, Node, SearchStatistics
+from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.search import (
     DEFAULT_MAX_HYPOTHESES,
@@ -382,4 +383,7 @@ def _rebuilt(explorer: Explorer, decisions: tuple[int, ...], material: Material)
     assigned = None
     for number in decisions:
         assigned = (number, assigned)
-    return Node(len(decisions), overlay, material.blocks, assigned, level=material.level)
+    outliers = tuple(k for k, number in enumerate(decisions) if number == OUTLIER)
+    return Node(
+        len(decisions), overlay, material.blocks, assigned, level=material.level, outliers=outliers
+    )

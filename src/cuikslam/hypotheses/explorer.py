@@ -25,7 +25,14 @@ from cuikslam.hypotheses._shared import EMPTY_OVERLAY, Overlay, SharedGraph
 from cuikslam.hypotheses.ambiguity import AmbiguityLp
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
 from cuikslam.hypotheses.local import LocalCheck
-from cuikslam.hypotheses.problem import Decision, Problem, observation_rows, unseen_rows
+from cuikslam.hypotheses.outlier_option import OUTLIER
+from cuikslam.hypotheses.problem import (
+    Decision,
+    Problem,
+    observation_rows,
+    region_of,
+    unseen_rows,
+)
 from cuikslam.narrowing.consistency import StrengthenReport, strengthen
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS
 
@@ -94,6 +101,8 @@ class SearchStatistics:
     """Nodes about to branch that were narrowed to the ``lp`` level first."""
     ambiguity_lp_seconds: float = 0.0
     """Time those narrowings took."""
+    outlier_options: int = 0
+    """Children that take their observation as an outlier (an ``outliers`` declaration)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -116,6 +125,8 @@ class Node:
     """Depth of the last node on its path narrowed to ``lp`` before it branched."""
     lp_gap: int = AMBIGUITY_LP_GAP
     """Decisions from that node to the next one that may be (see ``AMBIGUITY_LP_GAP``)."""
+    outliers: tuple[int, ...] = ()
+    """Decisions on its path taken as outliers (landmark number ``OUTLIER``)."""
 
     def decisions(self) -> list[int]:
         """Landmark number of every decision made, oldest first."""
@@ -185,8 +196,10 @@ class Explorer:
         """x and radius variables of the poses whose scans are complete before decision k."""
         p = self.problem
         xs, radii = [], []
+        tainted = p.outlier.tainted if p.outlier is not None else frozenset()
         for k in range(len(p.decisions) + 1):
             poses = p.completed_before(k) if p.has_sensor else []
+            poses = [q for q in poses if q not in tainted]
             xs.append(np.array([p.pose_x[q] for q in poses], dtype=np.int64))
             radii.append(np.array([p.radius_var[q] for q in poses], dtype=np.int64))
         return xs, radii
@@ -225,7 +238,7 @@ class Explorer:
             wanted = set(mine)
             entry = node.assigned
             for j in range(node.depth - 1, mine[0] - 1, -1):
-                if j in wanted:
+                if j in wanted and entry[0] != OUTLIER:
                     seen.add(entry[0])
                 entry = entry[1]
         return seen
@@ -235,6 +248,8 @@ class Explorer:
         """The node of no decisions: every shared constraint propagated; None when even that
         is proven empty (the log is inconsistent whatever the correspondence)."""
         graph = self.graph
+        if self.problem.refuted_at_root:  # the named observations break the declaration
+            return None
         ids = graph.intern(self.problem.root_rows)
         overlay = graph.add_rows(EMPTY_OVERLAY, ids)
         if overlay is None:
@@ -293,9 +308,10 @@ class Explorer:
         ]
         seen = self.seen_by(node, d.scan)
         kept = [n for n in numbers if n not in seen]
-        stats.candidates += len(numbers) + 1
+        outlier = p.outlier is not None and p.outlier.allows(node.outliers, k)
+        stats.candidates += len(numbers) + 1 + outlier
         stats.excluded_same_scan += len(numbers) - len(kept)
-        options = len(kept) + 1
+        options = len(kept) + 1 + outlier
         xs = all_xs[kept]
         passed = graph.gate(node.overlay, d.sensor_x, xs, d.bearing_var, d.range_var)
         stats.gated += int(np.count_nonzero(~passed))
@@ -314,6 +330,7 @@ class Explorer:
                 (number, node.assigned),
                 lp_depth=node.lp_depth,
                 lp_gap=node.lp_gap,
+                outliers=node.outliers,
             )
             child = self._after_decision(made)
             if child is not None:
@@ -325,20 +342,33 @@ class Explorer:
             (len(all_xs), node.assigned),
             lp_depth=node.lp_depth,
             lp_gap=node.lp_gap,
+            outliers=node.outliers,
         )
         prior = p.class_priors.get(d.landmark_class)
         if prior is not None and prior.at_most is not None and len(numbers) >= prior.at_most:
             stats.refuted_by_class_prior += 1
             new = None
-        if new is not None and p.has_sensor and len(self._done_xs[k]):
-            overlay = self._add_unseen(
-                new.overlay, self._done_xs[k], self._done_radii[k], np.array([d.slot_x])
-            )
+        region = region_of(p, d.landmark_class) if p.outlier is not None else None
+        if new is not None and region is not None:  # slots are free with a declaration
+            overlay = graph.restrict(new.overlay, np.array([d.slot_x, d.slot_x + 1]), *region)
+            stats.refuted_by_class_prior += overlay is None
+            new = None if overlay is None else replace(new, overlay=overlay)
+        done_xs, done_radii = self._done_xs[k], self._done_radii[k]
+        if node.outliers and len(done_xs):  # no UNSEEN on a pose with an outlier
+            keep = ~np.isin(done_xs, [p.decisions[j].pose_x for j in node.outliers])
+            done_xs, done_radii = done_xs[keep], done_radii[keep]
+        if new is not None and p.has_sensor and len(done_xs):
+            overlay = self._add_unseen(new.overlay, done_xs, done_radii, np.array([d.slot_x]))
             new = None if overlay is None else replace(new, overlay=overlay)
         if new is not None:
             new = self._after_decision(new)
         if new is not None:
             out.append(new)
+        if outlier:  # explains nothing, adds no constraint: explored last
+            made = replace(node, depth=k + 1, assigned=(OUTLIER, node.assigned))
+            made = self._after_decision(replace(made, outliers=(*node.outliers, k)))
+            stats.outlier_options += made is not None
+            out.extend([] if made is None else [made])
         stats.created += len(out)
         share = node.share / options
         return [replace(c, share=share) for c in out], options
@@ -366,7 +396,7 @@ class Explorer:
         completes its pose's scan, then the window of its pose narrowed in that pose's
         frame."""
         d = self.problem.decisions[child.depth - 1]
-        if self._too_close(child, child.assigned[0]):
+        if child.assigned[0] != OUTLIER and self._too_close(child, child.assigned[0]):
             self.stats.refuted_by_class_prior += 1
             return None
         if self.problem.has_sensor and d.completes_scan:
@@ -418,9 +448,12 @@ class Explorer:
     def _unseen_scans(self, node: Node, poses: list[int]) -> Node | None:
         """Add UNSEEN constraints between each of ``poses`` (whose scans ``node`` has fully
         decided) and every landmark it did not see; None when that proves ``node`` empty."""
+        p = self.problem
+        if p.outlier is not None:  # a pose with an outlier: its true detections are unknown
+            outlying = {p.decisions[j].pose for j in node.outliers} | p.outlier.tainted
+            poses = [q for q in poses if q not in outlying]
         if not poses:
             return node
-        p = self.problem
         landmark_xs = self.landmark_xs(node)
         seen = np.zeros((len(poses), len(landmark_xs)), dtype=np.bool_)
         for i, pose in enumerate(poses):

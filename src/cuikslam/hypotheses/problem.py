@@ -37,6 +37,7 @@ from cuikslam.graph.encoding import (
     YB,
 )
 from cuikslam.graph.variables import Variables, length_bounds, observation_row, offset_key
+from cuikslam.hypotheses.outlier_option import OutlierOption, outlier_option, relax_named
 from cuikslam.interval.angles import out_of_view_arc
 from cuikslam.log.records import (
     ClassPrior,
@@ -47,8 +48,10 @@ from cuikslam.log.records import (
     PosePrior,
     RelativePose,
 )
+from cuikslam.narrowing.outliers import RelaxedReport
+from cuikslam.narrowing.propagation import DEFAULT_RTOL
 
-__all__ = ["Decision", "Problem", "observation_rows", "unseen_rows"]
+__all__ = ["Decision", "Problem", "observation_rows", "region_of", "unseen_rows"]
 
 
 @dataclass(frozen=True)
@@ -104,6 +107,18 @@ class Problem:
     """The user's priors on each class of landmarks (count, separation, region)."""
     sensor_x: dict[int, list[int]] = field(default_factory=dict)
     """Pose -> x variables of its sensors' poses (observations with an offset)."""
+    outlier: OutlierOption | None = None
+    """The log's outliers declaration, as the search applies it (None: none)."""
+    named_outliers: RelaxedReport | None = None
+    """With a declaration, what the q-relaxed intersection of the named observations proved
+    at the root (:func:`.outlier_option.relax_named`)."""
+    named_positions: list[int] = field(default_factory=list)
+    """Observation position of each named observation, in log order."""
+
+    @property
+    def refuted_at_root(self) -> bool:
+        """True when the named observations alone break the outliers declaration."""
+        return self.named_outliers is not None and self.named_outliers.exceeded
 
     @property
     def ranked_vars(self) -> np.ndarray:
@@ -135,6 +150,7 @@ def build_problem(log: Log) -> Problem:
     sensor_of: dict[tuple[int, tuple[tuple[float, float], ...]], int] = {}
     sensor_x: dict[int, list[int]] = {}
     named_assignment: dict[int, int] = {}
+    named_rows: list[int] = []
 
     def pose(p: int) -> int:
         if p not in pose_x:
@@ -187,6 +203,7 @@ def build_problem(log: Log) -> Problem:
                 pending.append((index, record, position, m, slot, scan, a))
             else:
                 n = landmark(record.landmark, record.landmark_class, index)
+                named_rows.append(len(rows))
                 rows.append(observation_row(a, named_x[n], m))
                 seen_named.setdefault(scan, set()).add(n)
                 named_assignment[position] = n
@@ -210,6 +227,9 @@ def build_problem(log: Log) -> Problem:
         )
         for k, (index, record, pos, m, slot, scan, sensor_x) in enumerate(pending)
     ]
+    option = outlier_option(log, [d.pose for d in decisions])
+    if option is not None:
+        seen_named = {}  # a named observation may be an outlier: it excludes nothing
     problem = Problem(
         lo=np.zeros(0),
         hi=np.zeros(0),
@@ -225,24 +245,42 @@ def build_problem(log: Log) -> Problem:
         has_sensor=log.sensor is not None,
         n_observations=position,
         sensor_x=sensor_x,
+        outlier=option,
+        named_positions=sorted(named_assignment),
     )
     if log.sensor is not None:
         _add_sensor_variables(problem, b, log)
     problem.class_priors = log.class_priors
     _restrict_to_regions(problem, b)
     problem.lo, problem.hi = b.arrays()
+    if option is not None and named_rows:
+        problem.root_rows, problem.named_outliers = relax_named(
+            problem.root_rows, np.array(named_rows), problem.lo, problem.hi, option, DEFAULT_RTOL
+        )
     return problem
 
 
 def _restrict_to_regions(problem: Problem, b: Variables) -> None:
     """Every landmark of a class with a region lies in it: its named landmarks, and the slot
-    of each of its unlabelled observations (whichever landmark that one sees)."""
+    of each of its unlabelled observations (whichever landmark that one sees). With an
+    outliers declaration the slots are left free: an outlier's slot, tied to its pose by the
+    observation's wrong value, must constrain nothing; the region then joins a slot when it
+    becomes a new landmark (:func:`region_of`)."""
     located = [(x, c) for x, c in zip(problem.named_x.tolist(), problem.named_class, strict=True)]
-    located += [(d.slot_x, d.landmark_class) for d in problem.decisions]
+    if problem.outlier is None:
+        located += [(d.slot_x, d.landmark_class) for d in problem.decisions]
     for x, cls in located:
         prior = problem.class_priors.get(cls)
         if prior is not None and prior.x is not None and prior.y is not None:
             b.meet_point(x, prior.x, prior.y)
+
+
+def region_of(problem: Problem, landmark_class: str) -> tuple[np.ndarray, np.ndarray] | None:
+    """The region of a class's landmarks as (lo, hi) of (x, y); None without one."""
+    prior = problem.class_priors.get(landmark_class)
+    if prior is None or prior.x is None or prior.y is None:
+        return None
+    return np.array([prior.x[0], prior.y[0]]), np.array([prior.x[1], prior.y[1]])
 
 
 def _add_sensor_variables(problem: Problem, b: Variables, log: Log) -> None:

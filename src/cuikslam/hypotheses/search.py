@@ -29,11 +29,14 @@ from cuikslam.budget import portion
 from cuikslam.hypotheses._shared import SharedGraph
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
 from cuikslam.hypotheses.explorer import Budget, Explorer, Node
+from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.log.records import Log
 from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
 from cuikslam.options import SolveOptions
+from cuikslam.outliers import search_outliers_json
+from cuikslam.results.solution import OUTLIER as OUTLIER_MARK
 from cuikslam.results.solution import Hypothesis, Solution
 from cuikslam.results.summary import describe, summarize, summary_to_json
 
@@ -163,7 +166,13 @@ class _Tally:
             n_named, mark = len(p.named), self.new_mark
             for d, n in zip(p.decisions, decisions, strict=True):
                 # new landmarks are numbered in the order the log first sees them
-                assignment[d.position] = p.named[n] if n < n_named else f"{mark}{n - n_named + 1}"
+                assignment[d.position] = (
+                    OUTLIER_MARK
+                    if n == OUTLIER
+                    else p.named[n]
+                    if n < n_named
+                    else f"{mark}{n - n_named + 1}"
+                )
             if self.on_survivor is not None:
                 self.on_survivor(assignment)
             if tallied:
@@ -216,11 +225,12 @@ def _prefix(decisions: list[int], ends: int = 4) -> str:
     return f"[{head}, ... {len(decisions) - 2 * ends} more ..., {tail}] (depth {len(decisions)})"
 
 
-def _rank_key(explorer: Explorer, node: Node) -> tuple[int, int, float]:
-    """Fewest landmarks, then fewest unbounded widths, then smallest total width."""
+def _rank_key(explorer: Explorer, node: Node) -> tuple[int, int, int, float]:
+    """Fewest outliers, fewest landmarks, then fewest unbounded widths, then smallest total
+    width."""
     extra = explorer.landmark_xs(node)
     n_inf, total = explorer.graph.size_key(node.overlay, np.concatenate([extra, extra + 1]))
-    return (len(extra), n_inf, total)
+    return (len(node.outliers), len(extra), n_inf, total)
 
 
 def _best(explorer: Explorer, nodes: list[Node], keep: int) -> list[Node]:
@@ -236,7 +246,7 @@ def _hypothesis(explorer: Explorer, node: Node) -> Hypothesis:
     order = sorted(range(len(xs)), key=lambda n: first[n])
     prefix = "N" if p.named else "L"
     taken = set(p.named)
-    names: dict[int, str] = {}
+    names: dict[int, str] = {OUTLIER: OUTLIER_MARK}
     count = 0
     for n in order:
         if n < explorer.n_named:
@@ -490,6 +500,9 @@ def finish_search(
     )
     if progress is not None and complete:
         progress(1000, 1000)
+    outliers = search_outliers_json(log, problem.named_positions, problem.named_outliers)
+    if outliers is not None:
+        statistics["outliers_proven"] = len(outliers["proven"])
     return Solution(
         hypotheses=hypotheses,
         complete=complete,
@@ -499,4 +512,5 @@ def finish_search(
         consistency=level if hypotheses else consistency,
         messages=messages,
         correspondence=correspondence,
+        outliers=outliers,
     )

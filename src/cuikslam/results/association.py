@@ -21,7 +21,7 @@ from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
 
 from cuikslam.log.records import Log
-from cuikslam.results.solution import Hypothesis, Solution, check_truth
+from cuikslam.results.solution import OUTLIER, Hypothesis, Solution, check_truth
 from cuikslam.results.summary import summary_holds
 from cuikslam.simulate.truth import GroundTruth
 
@@ -48,7 +48,9 @@ def partition(assignment: Sequence[str], named: Collection[str] = frozenset()) -
         Equal for two assignments exactly when they are the same hypothesis.
     """
     first: dict[str, int] = {}
-    return [a if a in named else first.setdefault(a, len(first)) for a in assignment]
+    return [
+        a if a in named or a == OUTLIER else first.setdefault(a, len(first)) for a in assignment
+    ]
 
 
 def named_landmarks(log: Log) -> set[str]:
@@ -57,15 +59,33 @@ def named_landmarks(log: Log) -> set[str]:
 
 
 def rank_of(
-    hypotheses: Sequence[Hypothesis], assignment: Sequence[str], named: Collection[str] = ()
+    hypotheses: Sequence[Hypothesis],
+    assignment: Sequence[str],
+    named: Collection[str] = (),
+    outside: Collection[int] = (),
 ) -> int | None:
-    """The rank (1 for the first) of the hypothesis whose partition is that of
-    ``assignment``; None when none is."""
-    wanted = partition(assignment, named)
+    """The rank (1 for the first) of the true hypothesis; None when none is.
+
+    Without outliers it is the hypothesis whose partition is that of ``assignment``. A
+    hypothesis that takes observations as outliers (an ``outliers`` declaration) is true
+    when its partition of the other observations is that of ``assignment`` and its outliers
+    are exactly the observations whose interval misses the truth (``outside``, indices in
+    log order); failing that, the first whose outliers include them (its constraints are a
+    subset of the true hypothesis', so its boxes hold the truth too).
+    """
+    truth_out = set(outside)
+    found = None
     for rank, h in enumerate(hypotheses, start=1):
-        if partition(h.assignment, named) == wanted:
-            return rank
-    return None
+        mine = set(h.outliers)
+        if not truth_out <= mine:
+            continue
+        keep = [i for i in range(len(assignment)) if i not in mine]
+        ours = partition([h.assignment[i] for i in keep], named)
+        if ours == partition([assignment[i] for i in keep], named):
+            if mine == truth_out:
+                return rank
+            found = rank if found is None else found
+    return found
 
 
 @dataclass
@@ -79,7 +99,10 @@ class TruthVerdict:
 
 
 def truth_verdict(
-    solution: Solution, truth: GroundTruth, named: Collection[str] = frozenset()
+    solution: Solution,
+    truth: GroundTruth,
+    named: Collection[str] = frozenset(),
+    outside: Collection[int] = (),
 ) -> TruthVerdict:
     """Whether the true hypothesis survived and its boxes contain the truth.
 
@@ -98,6 +121,10 @@ def truth_verdict(
         The true poses, landmarks and assignment.
     named : collection of str
         Landmark ids the log names (see :func:`named_landmarks`).
+    outside : collection of int
+        With an ``outliers`` declaration, the observations (log order) whose interval misses
+        the truth (:func:`cuikslam.results.measurement_check.check_log`): the true
+        hypothesis takes exactly those as outliers (see :func:`rank_of`).
 
     Returns
     -------
@@ -116,13 +143,18 @@ def truth_verdict(
         return TruthVerdict(
             False, ["truth check: no hypothesis survived, yet the truth satisfies the log"]
         )
+    marked = [OUTLIER if i in set(outside) else a for i, a in enumerate(truth.assignment)]
     if not solution.hypotheses:  # survivors remain, none reported
-        return _truth_not_reported(solution, truth, named)
-    rank = rank_of(solution.hypotheses, truth.assignment, named)
+        return _truth_not_reported(solution, marked, named)
+    rank = rank_of(solution.hypotheses, truth.assignment, named, outside)
     if rank is None:
-        return _truth_not_reported(solution, truth, named)
+        return _truth_not_reported(solution, marked, named)
     h = solution.hypotheses[rank - 1]
-    names = dict(zip(h.assignment, truth.assignment, strict=True))
+    names = {
+        ours: theirs
+        for ours, theirs in zip(h.assignment, truth.assignment, strict=True)
+        if ours != OUTLIER
+    }
     landmark_xy = {ours: truth.exact_landmark(theirs) for ours, theirs in names.items()}
     report = check_truth(h, truth.pose_ids, truth.exact_poses(), landmark_xy)
     if not report.ok:
@@ -148,14 +180,15 @@ def truth_verdict(
 
 
 def _truth_not_reported(
-    solution: Solution, truth: GroundTruth, named: Collection[str]
+    solution: Solution, assignment: list[str], named: Collection[str]
 ) -> TruthVerdict:
-    """The verdict when no reported hypothesis is the true one."""
+    """The verdict when no reported hypothesis is the true one (``assignment``: the truth,
+    its outliers marked)."""
     survivors = int(solution.statistics.get("survivors", len(solution.hypotheses)))
     held = (
         None
         if solution.correspondence is None
-        else summary_holds(solution.correspondence, truth.assignment, set(named))
+        else summary_holds(solution.correspondence, assignment, set(named))
     )
     if survivors > len(solution.hypotheses) and held is False and solution.complete:
         return TruthVerdict(

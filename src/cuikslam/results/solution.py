@@ -19,6 +19,7 @@ from cuikslam.interval.angles import angle_in
 
 __all__ = [
     "NOT_REFUTED",
+    "OUTLIER",
     "PROVEN",
     "Hypothesis",
     "Solution",
@@ -31,6 +32,9 @@ PROVEN = "proven consistent"
 """A point satisfying every constraint was found and verified in interval arithmetic."""
 NOT_REFUTED = "not refuted"
 """Narrowing did not prove the hypothesis impossible (nor was a witness verified)."""
+OUTLIER = "outlier"
+"""In an assignment: the observation is taken as an outlier (it explains nothing; only with
+an ``outliers`` declaration and unknown correspondence)."""
 
 
 @dataclass
@@ -38,7 +42,8 @@ class Hypothesis:
     """One correspondence hypothesis (a kinematic graph) and its narrowed boxes."""
 
     assignment: list[str]
-    """Landmark id of each observation, in log order."""
+    """Landmark id of each observation, in log order (``OUTLIER`` for one it takes as an
+    outlier)."""
     pose_ids: list[int]
     poses: np.ndarray
     landmark_ids: list[str]
@@ -55,6 +60,11 @@ class Hypothesis:
         return len(self.landmark_ids)
 
     @property
+    def outliers(self) -> list[int]:
+        """Observations (indices in log order) it takes as outliers."""
+        return [i for i, a in enumerate(self.assignment) if a == OUTLIER]
+
+    @property
     def box_size(self) -> float:
         """Sum of all widths: a ranking key (smaller = more informative)."""
         widths = np.concatenate(
@@ -66,13 +76,14 @@ class Hypothesis:
         return float(widths.sum())
 
     @property
-    def rank_key(self) -> tuple[bool, int, float]:
+    def rank_key(self) -> tuple[bool, int, int, float]:
         """How hypotheses are ranked, best first: proven consistent before undecided (an
-        undecided one may still be impossible), then fewest landmarks (a new landmark
+        undecided one may still be impossible), then fewest outliers (an outlier explains
+        nothing), then fewest landmarks (a new landmark
         explains any observation, so the fewest is the most constrained explanation), then
         smallest boxes. It is an order, not a probability: every reported hypothesis is
         possible or undecided, and the guarantee holds whichever is true."""
-        return (self.status != PROVEN, self.n_landmarks, self.box_size)
+        return (self.status != PROVEN, len(self.outliers), self.n_landmarks, self.box_size)
 
     def pose(self, pose_id: int) -> np.ndarray:
         """The (3, 2) box of one pose."""

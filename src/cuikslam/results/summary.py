@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cuikslam.results.solution import OUTLIER
+
 __all__ = [
     "Ambiguity",
     "CorrespondenceSummary",
@@ -44,7 +46,8 @@ class CorrespondenceSummary:
 
     follows: list[list[str]]
     """For each observation, what it can follow across the survivors: ``"#j"`` (the
-    observation j saw the same landmark last), a named landmark's id, or ``"new"``."""
+    observation j saw the same landmark last), a named landmark's id, ``"new"``, or
+    ``"outlier"`` (it sees nothing: an ``outliers`` declaration)."""
     certain: list[bool]
     """True where every survivor agrees."""
     factors: list[Ambiguity]
@@ -52,6 +55,13 @@ class CorrespondenceSummary:
     combination of one choice per group."""
     poses: np.ndarray | None = None
     """Hull over survivors of each pose box, shape (n_poses, 3, 2), when known."""
+
+    @property
+    def outliers(self) -> tuple[list[int], list[int]]:
+        """Observations every survivor takes as an outlier, and those only some do."""
+        every = [i for i, f in enumerate(self.follows) if f == [OUTLIER]]
+        some = [i for i, f in enumerate(self.follows) if OUTLIER in f and len(f) > 1]
+        return every, some
 
     @property
     def combinations(self) -> int:
@@ -63,6 +73,9 @@ def _follows(assignment: list[str], named: set[str]) -> list[str]:
     last: dict[str, int] = {}
     out = []
     for i, landmark in enumerate(assignment):
+        if landmark == OUTLIER:  # sees nothing: follows nothing, followed by nothing
+            out.append(OUTLIER)
+            continue
         if landmark in last:
             out.append(f"#{last[landmark]}")
         else:
@@ -150,7 +163,15 @@ def summary_to_json(summary: CorrespondenceSummary) -> dict:
             {"observations": f.observations, "choices": f.choices} for f in summary.factors
         ],
         **({} if summary.poses is None else {"pose_hull": summary.poses.tolist()}),
+        **_outliers_json(summary),
     }
+
+
+def _outliers_json(summary: CorrespondenceSummary) -> dict:
+    every, some = summary.outliers
+    if not every and not some:
+        return {}
+    return {"outliers": {"every_survivor": every, "some_survivors": some}}
 
 
 def summary_holds(document: dict, assignment: list[str], named: set[str]) -> bool | None:
@@ -193,13 +214,19 @@ def describe(summary: CorrespondenceSummary, survivors: int, complete: bool = Tr
     n = len(summary.certain)
     certain = sum(summary.certain)
     scope = "" if complete else "in the survivors found so far (the search is incomplete), "
+    every, some = summary.outliers
+    outliers = (
+        f" ({len(every)} taken as outliers by every survivor, {len(some)} by some)"
+        if every or some
+        else ""
+    )
     if not summary.factors:
-        return f"{scope}all {n} observations are associated for certain"
+        return f"{scope}all {n} observations are associated for certain{outliers}"
     sizes = " x ".join(str(len(f.choices)) for f in summary.factors)
     groups = len(summary.factors)
     return (
         f"{scope}{certain} of {n} observations are associated for certain; {n - certain} "
         f"{'is' if n - certain == 1 else 'are'} ambiguous, in {groups} independent "
         f"group{'' if groups == 1 else 's'} ({sizes} = {summary.combinations} combinations: "
-        f"the {survivors} survivors)"
+        f"the {survivors} survivors){outliers}"
     )
