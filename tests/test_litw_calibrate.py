@@ -88,6 +88,10 @@ def test_a_quantile_leaves_out_at_most_its_share(tmp_path):
     b, e = most.bounds, every.bounds
     assert b.range <= e.range and b.bearing <= e.bearing
     out = most.outside
+    assert b.motion(1.0, 1.0) == e.motion(1.0, 1.0)  # moves: quantile 1 unless asked
+    assert out.moves == 0
+    moves = calibrate_lost_in_the_woods(path, keyframe=10, motion_quantile=0.8).outside
+    assert 0 < moves.moves <= 3 * 0.2 * moves.moves_checked  # each of x, y, theta leaves 20 %
     assert out.ranges <= 0.2 * out.sightings_checked
     assert out.bearings <= 0.2 * out.sightings_checked
     assert out.ranges + out.bearings > 0  # the share left out is really left out

@@ -162,8 +162,15 @@ def add_litw_calibrate_parser(datasets: argparse._SubParsersAction) -> None:
         "--quantile",
         type=_positive,
         default=1.0,
-        help="share of the part's stretches and sightings the bounds must hold (default 1: "
-        "all; below 1 the sightings left out are outliers to declare)",
+        help="share of the part's sightings the range and bearing bounds must hold "
+        "(default 1: all; below 1 the rest are outliers to declare with --outliers-window)",
+    )
+    p.add_argument(
+        "--motion-quantile",
+        type=_positive,
+        default=1.0,
+        help="the same for the stretches of odometry (default 1: a move outside its "
+        "interval cannot be declared an outlier)",
     )
     p.add_argument(
         "--check-start",
@@ -184,13 +191,19 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     )
 
     check_output_path(args.output)
-    if args.quantile > 1:
-        raise CommandError(f"--quantile {args.quantile}: must be at most 1")
+    for name in ("quantile", "motion_quantile"):
+        if getattr(args, name) > 1:
+            raise CommandError(f"--{name.replace('_', '-')} {getattr(args, name)}: at most 1")
     steps = args.steps
     if steps is None:
         steps = (load_dataset(args.file)["t"].size - args.start) // 2
     calibration = calibrate_lost_in_the_woods(
-        args.file, start=args.start, steps=steps, keyframe=args.keyframe, quantile=args.quantile
+        args.file,
+        start=args.start,
+        steps=steps,
+        keyframe=args.keyframe,
+        quantile=args.quantile,
+        motion_quantile=args.motion_quantile,
     )
     check_start = args.start + steps if args.check_start is None else args.check_start
     check = count_outside_lost_in_the_woods(

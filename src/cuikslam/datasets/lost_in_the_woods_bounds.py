@@ -255,6 +255,7 @@ def calibrate_lost_in_the_woods(
     steps: int | None = None,
     keyframe: int = 10,
     quantile: float = 1.0,
+    motion_quantile: float = 1.0,
 ) -> LitwCalibration:
     """Measure the bounds on samples ``start .. start + steps`` (see the module docstring).
 
@@ -265,9 +266,11 @@ def calibrate_lost_in_the_woods(
     keyframe : int
         The longest stretch measured, in samples: imports may use keyframes up to it.
     quantile : float
-        Share (0 < q <= 1) of the part's stretches and sightings the bounds must hold; 1
-        takes the maxima. Below 1 the rest are outliers to declare (sightings only: the
-        log's ``outliers`` record does not cover moves).
+        Share (0 < q <= 1) of the part's sightings the range and bearing bounds must
+        hold; 1 takes the maxima. Below 1 the rest are outliers to declare.
+    motion_quantile : float
+        The same for the stretches of odometry (default 1: the log's ``outliers`` record
+        covers observations only, so a move outside its interval cannot be declared).
 
     Raises
     ------
@@ -276,8 +279,9 @@ def calibrate_lost_in_the_woods(
     ValueError
         If ``quantile`` is not in (0, 1].
     """
-    if not 0 < quantile <= 1:
-        raise ValueError(f"the quantile must be in (0, 1], got {quantile}")
+    for q in (quantile, motion_quantile):
+        if not 0 < q <= 1:
+            raise ValueError(f"a quantile must be in (0, 1], got {q}")
     data = load_dataset(path)
     start, end = _part(path, data["t"].size, start, steps)
     errors = _errors(data, start, end, keyframe)
@@ -286,9 +290,9 @@ def calibrate_lost_in_the_woods(
             path, None, f"samples {start}..{end}: no stretch or sighting with truth"
         )
     fitted = [
-        _fit(errors.move[:, 0], errors.travelled, quantile),
-        _fit(errors.move[:, 1], errors.travelled, quantile),
-        _fit(errors.move[:, 2], errors.turned, quantile),
+        _fit(errors.move[:, 0], errors.travelled, motion_quantile),
+        _fit(errors.move[:, 1], errors.travelled, motion_quantile),
+        _fit(errors.move[:, 2], errors.turned, motion_quantile),
     ]
     bounds = LitwBounds(
         range=_round_up(float(np.quantile(np.abs(errors.range), quantile, method="higher"))),
@@ -306,6 +310,7 @@ def calibrate_lost_in_the_woods(
             "end": end,
             "keyframe": keyframe,
             "quantile": quantile,
+            "motion_quantile": motion_quantile,
         },
         errors={
             "range": _stats(errors.range),
