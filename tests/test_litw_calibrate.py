@@ -9,7 +9,6 @@ import math
 import os
 
 import numpy as np
-import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -158,13 +157,17 @@ def test_real_first_half_calibrated_moves_hold_the_vicon_truth():
     assert calibrated < np.median([width(m) for m in default.relative_poses]) / 2
 
 
-@pytest.mark.parametrize("quantile", [1.0])
-def test_real_second_half_is_counted(quantile):
+def test_real_second_half_is_counted_and_a_margin_covers_more():
     path = _dataset()
-    calibration = calibrate_lost_in_the_woods(path, steps=6304, quantile=quantile)
+    calibration = calibrate_lost_in_the_woods(path, steps=6304)
     rest = count_outside_lost_in_the_woods(path, calibration.bounds, start=6304)
     assert rest.moves_checked > 6000 and rest.sightings_checked > 29000
     assert len(rest.worst) == min(10, rest.moves) + min(10, rest.ranges + rest.bearings)
+    wider = calibrate_lost_in_the_woods(path, steps=6304, motion_margin=2.0)
+    b, w = calibration.bounds, wider.bounds
+    assert all(a >= 2 * v for a, v in zip(w.motion(1.0, 1.0), b.motion(1.0, 1.0), strict=True))
+    assert (w.range, w.bearing) == (b.range, b.bearing)
+    assert count_outside_lost_in_the_woods(path, w, start=6304).moves < rest.moves
 
 
 def test_calibrate_check_sees_the_laser_mount(tmp_path):

@@ -173,6 +173,13 @@ def add_litw_calibrate_parser(datasets: argparse._SubParsersAction) -> None:
         "interval cannot be declared an outlier)",
     )
     p.add_argument(
+        "--motion-margin",
+        type=_positive,
+        default=1.0,
+        help="factor (>= 1) on the odometry bounds, for what the calibrated part did not "
+        "show (default 1)",
+    )
+    p.add_argument(
         "--check-start",
         type=_first_sample,
         help="first sample of the checked part (default: where the calibrated part ends)",
@@ -194,6 +201,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     for name in ("quantile", "motion_quantile"):
         if getattr(args, name) > 1:
             raise CommandError(f"--{name.replace('_', '-')} {getattr(args, name)}: at most 1")
+    if args.motion_margin < 1:
+        raise CommandError(f"--motion-margin {args.motion_margin}: at least 1")
     steps = args.steps
     if steps is None:
         steps = (load_dataset(args.file)["t"].size - args.start) // 2
@@ -204,6 +213,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         keyframe=args.keyframe,
         quantile=args.quantile,
         motion_quantile=args.motion_quantile,
+        motion_margin=args.motion_margin,
     )
     check_start = args.start + steps if args.check_start is None else args.check_start
     check = count_outside_lost_in_the_woods(
