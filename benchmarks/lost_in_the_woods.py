@@ -80,7 +80,7 @@ def _widths(boxes: np.ndarray) -> dict:
     }
 
 
-def run_calibrated(path: Path, level: str, every_observation: bool) -> dict:
+def run_calibrated(path: Path, level: str, every_observation: bool, margin: float = 1.0) -> dict:
     """Calibrate on the first half, solve the whole run, evaluate each half."""
     import resource
 
@@ -91,7 +91,7 @@ def run_calibrated(path: Path, level: str, every_observation: bool) -> dict:
 
     half = 6304
     t0 = time.perf_counter()
-    calibration = calibrate_lost_in_the_woods(path, steps=half)
+    calibration = calibrate_lost_in_the_woods(path, steps=half, motion_margin=margin)
     rest = count_outside_lost_in_the_woods(path, calibration.bounds, start=half)
     t1 = time.perf_counter()
     log, truth = read_lost_in_the_woods(
@@ -109,6 +109,7 @@ def run_calibrated(path: Path, level: str, every_observation: bool) -> dict:
     return {
         "level": level,
         "every_observation": every_observation,
+        "motion_margin": margin,
         "bounds": vars(calibration.bounds),
         "second_half_outside": rest.to_json(),
         "poses": len(log.pose_ids),
@@ -143,6 +144,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument(
         "--every-observation", action="store_true", help="--calibrated: every observation"
     )
+    parser.add_argument(
+        "--motion-margin", type=float, default=1.0, help="--calibrated: factor on the motion"
+    )
     args = parser.parse_args(argv)
     folder = data_dir()
     path = folder / "lost-in-the-woods" / "dataset2.mat" if folder else None
@@ -150,7 +154,7 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit("dataset2.mat not found: set CUIKSLAM_DATA")
     warm_up()
     if args.calibrated:
-        row = run_calibrated(path, args.level, args.every_observation)
+        row = run_calibrated(path, args.level, args.every_observation, args.motion_margin)
         print(json.dumps(row))
         out = Path(__file__).parent / "results" / "lost_in_the_woods_calibrated.json"
         rows = json.loads(out.read_text()) if out.is_file() else []
