@@ -9,6 +9,8 @@ from pathlib import Path
 import numpy as np
 import scipy.io
 
+from _exact import angle_inside, mpf
+
 LASER = 0.219
 
 
@@ -54,3 +56,22 @@ def write_synthetic(
             "v_var": np.array([[1e-4]]), "om_var": np.array([[1e-4]]),
         },
     )  # fmt: skip
+
+
+def moves_hold_the_truth(log, truth) -> int:
+    """Assert every move between two consecutive poses with truth holds it (x and y in the
+    first pose's frame, the heading change modulo 2 pi, compared exactly); return how many
+    were checked."""
+    moves = {(m.source, m.target): m for m in log.relative_poses}
+    checked = 0
+    for a, b in zip(truth.pose_ids, truth.pose_ids[1:], strict=False):
+        if (a, b) not in moves:
+            continue
+        m, pa, pb = moves[a, b], truth.pose_xyt(a), truth.pose_xyt(b)
+        c, s = math.cos(pa[2]), math.sin(pa[2])
+        dx, dy = pb[0] - pa[0], pb[1] - pa[1]
+        assert m.dx[0] <= c * dx + s * dy <= m.dx[1], (a, m)
+        assert m.dy[0] <= -s * dx + c * dy <= m.dy[1], (a, m)
+        assert angle_inside(*m.dtheta, mpf(pb[2] - pa[2])), (a, m)
+        checked += 1
+    return checked

@@ -3,7 +3,6 @@ real recording (skipped with a reason when absent; ``CUIKSLAM_DATA`` points else
 
 from __future__ import annotations
 
-import math
 import os
 from pathlib import Path
 
@@ -12,6 +11,7 @@ import pytest
 import scipy.io
 
 from _exact import angle_inside, mpf
+from _litw import moves_hold_the_truth
 from _litw import write_synthetic as _synthetic
 from cuikslam.cli.main import main
 from cuikslam.datasets import data_dir, read_lost_in_the_woods
@@ -49,15 +49,7 @@ def test_synthetic_whole_run_holds_the_truth(tmp_path):
     assert len(log.relative_poses) == 12 and log.pose_ids == list(range(13))
     assert truth.pose_ids == [i for i in range(13) if not 4 <= i < 6]
     assert all(o.offset is not None for o in log.observations)
-    moves = {(m.source, m.target): m for m in log.relative_poses}
-    for a, b in zip(truth.pose_ids, truth.pose_ids[1:], strict=False):
-        if (a, b) not in moves:
-            continue
-        m, pa, pb = moves[a, b], truth.pose_xyt(a), truth.pose_xyt(b)
-        c, s = math.cos(pa[2]), math.sin(pa[2])
-        dx, dy = pb[0] - pa[0], pb[1] - pa[1]
-        assert _inside(c * dx + s * dy, m.dx) and _inside(-s * dx + c * dy, m.dy)
-        assert _inside(pb[2] - pa[2], m.dtheta, angle=True)
+    assert moves_hold_the_truth(log, truth) == 9
     graph = KinematicGraph.from_log(log)
     result = propagate(graph)
     assert result.status is Status.CONSISTENT
@@ -131,18 +123,7 @@ def test_real_run_moves_hold_the_vicon_truth():
     log, truth = read_lost_in_the_woods(_dataset(), unknown=False)
     assert len(log.relative_poses) == 1261 and len(log.observations) == 61086
     assert len(truth.pose_ids) == 1229  # keyframes with a valid Vicon pose
-    moves = {(m.source, m.target): m for m in log.relative_poses}
-    checked = 0
-    for a, b in zip(truth.pose_ids, truth.pose_ids[1:], strict=False):
-        if (a, b) not in moves:
-            continue
-        m, pa, pb = moves[a, b], truth.pose_xyt(a), truth.pose_xyt(b)
-        c, s = math.cos(pa[2]), math.sin(pa[2])
-        dx, dy = pb[0] - pa[0], pb[1] - pa[1]
-        assert _inside(c * dx + s * dy, m.dx) and _inside(-s * dx + c * dy, m.dy), (a, m)
-        assert _inside(pb[2] - pa[2], m.dtheta, angle=True), (a, m)
-        checked += 1
-    assert checked == 1210
+    assert moves_hold_the_truth(log, truth) == 1210
 
 
 def test_real_window_solved_boxes_contain_the_truth():

@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from _exact import angle_inside, mpf
-from _litw import LASER, write_synthetic
+from _litw import LASER, moves_hold_the_truth, write_synthetic
 from cuikslam.cli.main import main
 from cuikslam.datasets import read_lost_in_the_woods
 from cuikslam.datasets.lost_in_the_woods_bounds import (
@@ -23,24 +23,6 @@ from cuikslam.datasets.lost_in_the_woods_bounds import (
 )
 from cuikslam.log import read_log_file
 from test_datasets import _dataset
-
-
-def _moves_hold_the_truth(log, truth) -> int:
-    """Assert every move between two poses with truth holds it (exactly, angles modulo
-    2 pi); return how many were checked."""
-    moves = {(m.source, m.target): m for m in log.relative_poses}
-    checked = 0
-    for a, b in zip(truth.pose_ids, truth.pose_ids[1:], strict=False):
-        if (a, b) not in moves:
-            continue
-        m, pa, pb = moves[a, b], truth.pose_xyt(a), truth.pose_xyt(b)
-        c, s = math.cos(pa[2]), math.sin(pa[2])
-        dx, dy = pb[0] - pa[0], pb[1] - pa[1]
-        assert m.dx[0] <= c * dx + s * dy <= m.dx[1], (a, m)
-        assert m.dy[0] <= -s * dx + c * dy <= m.dy[1], (a, m)
-        assert angle_inside(*m.dtheta, mpf(pb[2] - pa[2])), (a, m)
-        checked += 1
-    return checked
 
 
 def _sightings_hold_the_truth(log, truth) -> int:
@@ -71,7 +53,7 @@ def test_calibrated_bounds_hold_every_move_and_sighting_of_their_part(tmp_path):
     log, truth = read_lost_in_the_woods(
         path, unknown=False, bounds=calibration.bounds, every_observation=False
     )
-    assert _moves_hold_the_truth(log, truth) == 9
+    assert moves_hold_the_truth(log, truth) == 9
     assert _sightings_hold_the_truth(log, truth) > 10
     # tighter than three standard deviations per sample composed over a keyframe
     default, _ = read_lost_in_the_woods(path, unknown=False, every_observation=False)
@@ -149,7 +131,7 @@ def test_real_first_half_calibrated_moves_hold_the_vicon_truth():
     log, truth = read_lost_in_the_woods(
         path, steps=6304, unknown=False, bounds=calibration.bounds, every_observation=False
     )
-    assert _moves_hold_the_truth(log, truth) > 600
+    assert moves_hold_the_truth(log, truth) > 600
     assert _sightings_hold_the_truth(log, truth) > 3000
     default, _ = read_lost_in_the_woods(path, steps=6304, every_observation=False)
     width = lambda m: m.dtheta[1] - m.dtheta[0]  # noqa: E731

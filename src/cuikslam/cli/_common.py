@@ -7,6 +7,7 @@ Kept apart from :mod:`cuikslam.cli.main` so that ``python -m cuikslam.cli.main``
 
 from __future__ import annotations
 
+import argparse
 import os
 import sys
 import time
@@ -112,3 +113,18 @@ def progress_bar(
             bar.update(task, completed=done, total=total)
 
         yield advance
+
+
+def int_at_least(minimum: int) -> Callable[[str], int]:
+    """An argparse type: an integer of at least ``minimum``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+        if value < minimum:
+            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
+        return value
+
+    return parse

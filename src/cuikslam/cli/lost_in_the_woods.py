@@ -6,29 +6,14 @@ from __future__ import annotations
 import argparse
 import sys
 
-from cuikslam.cli._common import CommandError, check_output_path, write_output
+from cuikslam.cli._common import CommandError, check_output_path, int_at_least, write_output
 from cuikslam.cli.mrclam import _positive, add_outlier_options, declare_outliers
 
 __all__ = ["add_litw_calibrate_parser", "add_litw_import_parser"]
 
 
-def _whole(minimum: int):
-    """An argparse type: a whole number at least ``minimum``."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
-        return value
-
-    return parse
-
-
-_samples = _whole(1)
-_first_sample = _whole(0)
+_samples = int_at_least(1)
+_first_sample = int_at_least(0)
 
 
 def add_litw_import_parser(datasets: argparse._SubParsersAction) -> None:

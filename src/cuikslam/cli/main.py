@@ -11,7 +11,7 @@ import argparse
 import math
 import os
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 from cuikslam import __version__
@@ -21,7 +21,7 @@ from cuikslam.budget import (
     MIN_COMMAND_BUDGET,
     SECONDS_PER_POSE,
 )
-from cuikslam.cli._common import EXIT_INPUT, CommandError
+from cuikslam.cli._common import EXIT_INPUT, CommandError, int_at_least
 from cuikslam.cli.commands import (
     cmd_evaluate,
     cmd_paper,
@@ -91,21 +91,6 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _int_at_least(minimum: int) -> Callable[[str], int]:
-    """An argparse type: an integer of at least ``minimum``."""
-
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-        if value < minimum:
-            raise argparse.ArgumentTypeError(f"must be at least {minimum}, got {value}")
-        return value
-
-    return parse
-
-
 def _time_budget(text: str) -> float | str | None:
     """An argparse type: seconds (a positive number), ``none`` / ``inf`` for no limit, or
     ``auto``."""
@@ -122,8 +107,8 @@ def _time_budget(text: str) -> float | str | None:
     return None if math.isinf(value) else value
 
 
-_positive_int = _int_at_least(1)
-_non_negative_int = _int_at_least(0)
+_positive_int = int_at_least(1)
+_non_negative_int = int_at_least(0)
 
 
 def _positive_float(text: str) -> float:

@@ -22,6 +22,8 @@ import subprocess
 import sys
 import time
 
+from cuikslam.cli._common import int_at_least
+
 __all__ = [
     "COMPILE_NOTE_S",
     "PARTS",
@@ -150,11 +152,7 @@ def run_warm_up(jobs: int = 1) -> int:
     return 0
 
 
-def _positive_int(text: str) -> int:
-    value = int(text)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
+_positive_int = int_at_least(1)
 
 
 def add_warm_up_parser(sub: argparse._SubParsersAction) -> None:

@@ -31,7 +31,7 @@ import math
 import os
 from collections.abc import Collection
 from dataclasses import asdict, dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -41,6 +41,9 @@ from cuikslam.datasets.mrclam_files import MrclamTables, read_mrclam_tables
 from cuikslam.errors import InputFileError
 from cuikslam.interval.angles import wrap_angle
 from cuikslam.results.measurement_check import Outside, check_log
+
+if TYPE_CHECKING:
+    from cuikslam.datasets.lost_in_the_woods_bounds import LitwBounds, LitwOutside
 
 __all__ = [
     "Calibration",
@@ -55,13 +58,14 @@ FORMAT_VERSION = 1
 
 @dataclass
 class Calibration:
-    """Bounds measured on a part of a run, and the errors they come from."""
+    """Bounds measured on a part of a run, what they come from, and that part checked with
+    them (MRCLAM's or Lost in the Woods')."""
 
-    bounds: MrclamBounds
+    bounds: MrclamBounds | LitwBounds
     calibrated_on: dict[str, Any]
     errors: dict[str, dict[str, float]]
-    outside: Outside
-    """The calibration part itself imported with the bounds (nonzero when quantile < 1)."""
+    outside: Outside | LitwOutside
+    """The calibration part itself checked with the bounds (nonzero when quantile < 1)."""
 
 
 def _sighting_errors(

@@ -39,14 +39,13 @@ from typing import Any
 import numpy as np
 
 from cuikslam.datasets._litw_file import load_dataset
-from cuikslam.datasets.calibrate import _round_up, _stats
+from cuikslam.datasets.calibrate import Calibration, _round_up, _stats
 from cuikslam.errors import InputFileError
 from cuikslam.interval.angles import wrap_angle
 from cuikslam.motion import compose_steps
 
 __all__ = [
     "LitwBounds",
-    "LitwCalibration",
     "LitwOutside",
     "calibrate_lost_in_the_woods",
     "count_outside_lost_in_the_woods",
@@ -238,16 +237,6 @@ def _outside(errors: _Errors, bounds: LitwBounds, shown: int = 10) -> LitwOutsid
     )  # fmt: skip
 
 
-@dataclass
-class LitwCalibration:
-    """Bounds measured on a part, what they come from, and the part checked with them."""
-
-    bounds: LitwBounds
-    calibrated_on: dict[str, Any]
-    errors: dict[str, dict[str, float]]
-    outside: LitwOutside
-
-
 def calibrate_lost_in_the_woods(
     path: str | os.PathLike[str],
     *,
@@ -257,7 +246,7 @@ def calibrate_lost_in_the_woods(
     quantile: float = 1.0,
     motion_quantile: float = 1.0,
     motion_margin: float = 1.0,
-) -> LitwCalibration:
+) -> Calibration:
     """Measure the bounds on samples ``start .. start + steps`` (see the module docstring).
 
     Parameters
@@ -312,7 +301,7 @@ def calibrate_lost_in_the_woods(
         move_theta=fitted[2][0], move_theta_per_radian=fitted[2][1],
         max_samples=keyframe,
     )  # fmt: skip
-    return LitwCalibration(
+    return Calibration(
         bounds=bounds,
         calibrated_on={
             "file": os.fspath(path),
