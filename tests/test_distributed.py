@@ -95,6 +95,25 @@ def test_the_split_search_finds_what_one_process_finds(client, seed: int) -> Non
     assert streamed == streamed_one  # in depth-first order
 
 
+def test_the_split_search_with_declared_outliers_matches(client) -> None:
+    """The outlier option: a subtree's outlier count is a function of its prefix, so tasks
+    rebuilt from their decisions give what one process gives."""
+    from cuikslam.hypotheses.distributed import search_distributed
+    from cuikslam.log.records import OutlierBound
+
+    log, _ = simulate_random_world(
+        seed=2, n_poses=6, n_landmarks=3, classes=("a",), size=(10.0, 8.0), max_range=6.0,
+        odometry_bounds=(0.05, 0.1), observation_bounds=(0.2, 0.1), unknown=True,
+    )  # fmt: skip
+    log.records.insert(0, OutlierBound(1))
+    options = {"consistency": "hull", "max_hypotheses": 1000, "strengthen_during": 0}
+    one = solve_unknown(log, **options)
+    assert one.complete and one.statistics["outlier_options"] > 0
+    assert sum(1 for h in one.hypotheses if h.outliers) >= 2
+    many = search_distributed(log, client=client, quantum_nodes=10, **options)
+    assert_same_solution(one, many)
+
+
 def test_the_best_ranked_and_the_stronger_level_match(client) -> None:
     """A report shorter than the survivors, and the lp level on the best-ranked."""
     from cuikslam.hypotheses.distributed import search_distributed
