@@ -26,13 +26,7 @@ from cuikslam.hypotheses.ambiguity import AmbiguityLp
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
 from cuikslam.hypotheses.local import LocalCheck
 from cuikslam.hypotheses.outlier_option import OUTLIER
-from cuikslam.hypotheses.problem import (
-    Decision,
-    Problem,
-    observation_rows,
-    region_of,
-    unseen_rows,
-)
+from cuikslam.hypotheses.problem import Decision, Problem, observation_rows, region_of, unseen_rows
 from cuikslam.narrowing.consistency import StrengthenReport, strengthen
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS
 
@@ -198,8 +192,7 @@ class Explorer:
         xs, radii = [], []
         tainted = p.outlier.tainted if p.outlier is not None else frozenset()
         for k in range(len(p.decisions) + 1):
-            poses = p.completed_before(k) if p.has_sensor else []
-            poses = [q for q in poses if q not in tainted]
+            poses = [q for q in p.completed_before(k) if q not in tainted] if p.has_sensor else []
             xs.append(np.array([p.pose_x[q] for q in poses], dtype=np.int64))
             radii.append(np.array([p.radius_var[q] for q in poses], dtype=np.int64))
         return xs, radii
@@ -289,6 +282,7 @@ class Explorer:
         self.stats.ambiguity_lp_seconds += time.perf_counter() - started
         self.stats.operator_applications += applications
         self.stats.created -= len(out)  # replaced (or refuted with the node): never explored
+        self.stats.outlier_options -= sum(c.assigned[0] == OUTLIER for c in out)
         if overlay is None:
             self.stats.refuted_by_consistency += 1
             return [], options
@@ -367,9 +361,9 @@ class Explorer:
         if outlier:  # explains nothing, adds no constraint: explored last
             made = replace(node, depth=k + 1, assigned=(OUTLIER, node.assigned))
             made = self._after_decision(replace(made, outliers=(*node.outliers, k)))
-            stats.outlier_options += made is not None
             out.extend([] if made is None else [made])
         stats.created += len(out)
+        stats.outlier_options += sum(c.assigned[0] == OUTLIER for c in out)
         share = node.share / options
         return [replace(c, share=share) for c in out], options
 
