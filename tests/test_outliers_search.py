@@ -26,8 +26,11 @@ from hypothesis import strategies as st
 
 from cuikslam.hypotheses import solve_unknown
 from cuikslam.log import parse_log_lines
-from cuikslam.results.association import rank_of
+from cuikslam.results.association import rank_of, truth_verdict
+from cuikslam.results.evaluate import evaluate
+from cuikslam.results.measurement_check import check_log
 from cuikslam.results.solution import OUTLIER, Hypothesis, Solution
+from cuikslam.simulate.truth import GroundTruth
 from test_cli import run
 from test_guarantee import reported
 from worlds import (
@@ -241,3 +244,24 @@ def test_the_true_hypothesis_takes_exactly_the_true_outliers() -> None:
     assert rank_of([plain, more], truth, outside=[1]) == 2
     assert rank_of([plain, _h(OUTLIER, "N1", "N2")], truth, outside=[1]) is None
     assert rank_of([_h("N1", OUTLIER, "N2")], truth, outside=[1]) is None  # 0 and 2 differ
+
+
+def test_truth_check_and_evaluate_take_the_true_outliers() -> None:
+    """The two-pose log and its truth (post at (2, 0), poses at x = 0 and 1): the true
+    hypothesis takes the sighting that misses its range (7 m, truly 1 m) as an outlier."""
+    log = parse_log_lines(_two_poses('{"type": "outliers", "at_most": 1}'))
+    truth = GroundTruth(
+        poses_xyt=np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]),
+        pose_ids=[0, 1],
+        landmarks_xy=np.array([[2.0, 0.0]]),
+        landmark_ids=["P"],
+        landmark_classes=["post"],
+        assignment=["P", "P"],
+    )
+    outside = check_log(log, truth).outside_observations
+    assert outside == [1]
+    solution = solve_unknown(log, consistency="hull")
+    verdict = truth_verdict(solution, truth, outside=outside)
+    assert verdict.ok and "survived" in verdict.lines[0], verdict.lines
+    ev = evaluate(solution, truth, outside=outside)
+    assert solution.hypotheses[ev.true_rank - 1].outliers == [1]

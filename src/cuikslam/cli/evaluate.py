@@ -14,33 +14,34 @@ from cuikslam._atomic import atomic_write_text
 from cuikslam.cli._common import CommandError, check_figure_path, check_output_path, write_output
 from cuikslam.errors import InputFileError
 from cuikslam.log.reader import read_log_file
+from cuikslam.log.records import Log
 from cuikslam.results.association import named_landmarks
 from cuikslam.results.evaluate import Evaluation, evaluate, evaluation_to_json
 from cuikslam.results.io import read_result_file
+from cuikslam.results.measurement_check import check_log
 from cuikslam.results.solution import no_hypothesis
 from cuikslam.simulate.truth import read_truth_file
 
 __all__ = ["print_evaluation", "run_evaluate"]
 
 
-def _named_ids(log_path: str | None, result_log: str, notes: list[str]) -> set[str]:
-    """Landmark ids the log names: from ``--log``, else the log the result names when it
-    is still readable; else none (partitions are then compared without names)."""
+def _the_log(log_path: str | None, result_log: str, notes: list[str]) -> Log | None:
+    """The log: from ``--log``, else the log the result names when it is still readable;
+    else None (partitions are then compared without the log's landmark names)."""
     path = log_path or result_log
     if not path:
         notes.append("no log given: partitions compared without the log's landmark names")
-        return set()
+        return None
     if log_path is None and not Path(path).is_file():
         notes.append(f"the result's log {path} is not there: partitions compared without names")
-        return set()
+        return None
     try:
-        log = read_log_file(path)
+        return read_log_file(path)
     except InputFileError:
         if log_path is not None:
             raise
         notes.append(f"the result's log {path} is unreadable: partitions compared without names")
-        return set()
-    return named_landmarks(log)
+        return None
 
 
 def _pct(part: int, whole: int) -> str:
@@ -156,11 +157,15 @@ def run_evaluate(
         from cuikslam.outliers import evaluation_note
 
         notes.append(evaluation_note(solution.outliers))
-    named = _named_ids(log_path, solution.log_path, notes)
+    log = _the_log(log_path, solution.log_path, notes)
+    named = set() if log is None else named_landmarks(log)
     if not solution.hypotheses:
         raise CommandError(f"{result_path}: no hypothesis to evaluate ({no_hypothesis(solution)})")
+    outside: list[int] = []  # the true outliers, when hypotheses may take some
+    if log is not None and log.outlier_bounds and log.has_unknown_correspondence:
+        outside = check_log(log, truth).outside_observations
     try:
-        ev = evaluate(solution, truth, named)
+        ev = evaluate(solution, truth, named, outside)
     except ValueError as err:
         raise CommandError(f"{truth_path}: does not match {result_path}: {err}") from None
     ev.notes[:0] = notes

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from cuikslam.results.association import rank_of
-from cuikslam.results.solution import Hypothesis, Solution, _check_pose, _check_xy
+from cuikslam.results.solution import OUTLIER, Hypothesis, Solution, _check_pose, _check_xy
 from cuikslam.results.summary import _follows
 from cuikslam.simulate.truth import GroundTruth
 
@@ -199,7 +199,10 @@ def _landmark_truth(
 
 
 def evaluate(
-    solution: Solution, truth: GroundTruth, named: Collection[str] = frozenset()
+    solution: Solution,
+    truth: GroundTruth,
+    named: Collection[str] = frozenset(),
+    outside: Collection[int] = (),
 ) -> Evaluation:
     """Measure ``solution`` against ``truth`` (see the module docstring).
 
@@ -213,6 +216,10 @@ def evaluate(
         landmarks are matched by id).
     named : collection of str
         Landmark ids the log names: they keep their names when partitions are compared.
+    outside : collection of int
+        With an ``outliers`` declaration and unknown correspondence, the observations that
+        miss their truth: the true hypothesis takes them as outliers (see
+        :func:`~cuikslam.results.association.rank_of`).
 
     Returns
     -------
@@ -243,7 +250,7 @@ def evaluate(
 
     true_rank = None
     if truth.assignment or n_obs == 0:
-        true_rank = rank_of(solution.hypotheses, truth.assignment, named)
+        true_rank = rank_of(solution.hypotheses, truth.assignment, named, outside)
     rank = true_rank or 1
     h = solution.hypotheses[rank - 1]
 
@@ -284,7 +291,8 @@ def evaluate(
 
     correct = None
     if truth.assignment or n_obs == 0:
-        true_follows = _follows(list(truth.assignment), set(named))
+        marked = [OUTLIER if i in set(outside) else a for i, a in enumerate(truth.assignment)]
+        true_follows = _follows(marked, set(named))
         ours = _follows(list(best.assignment), set(named))
         correct = sum(a == b for a, b in zip(ours, true_follows, strict=True))
 
