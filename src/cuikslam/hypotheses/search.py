@@ -351,8 +351,8 @@ def solve_unknown(
     consistency : str
         Level applied to the survivors (``auto``, ``hull``, ``lp``, ``lp-split``).
     max_hypotheses : int
-        Survivors reported in detail (the best-ranked: fewest landmarks, then smallest
-        boxes). It never limits the search: every survivor is counted.
+        Survivors reported in detail (the best-ranked: fewest outliers, fewest landmarks,
+        then smallest boxes). It never limits the search: every survivor is counted.
     strengthen_limit : int
         The level is applied to all survivors when at most this many, else to the best.
     strengthen_during : int or None
@@ -370,8 +370,9 @@ def solve_unknown(
         Node expansions after which the search stops, incomplete.
     on_survivor : callable, optional
         Called with the assignment of every survivor of the search as it is found (a
-        landmark per observation, in log order: the log's ids, and ``"+k"`` for the k-th
-        landmark the hypothesis adds, in the order the log first sees them). The stronger
+        landmark per observation, in log order: the log's ids, ``"+k"`` for the k-th
+        landmark the hypothesis adds, in the order the log first sees them, and
+        ``"outlier"`` for an observation it takes as an outlier). The stronger
         level may still refute some of them afterwards (``statistics['survivors']`` counts
         those left).
     local_frame : bool
