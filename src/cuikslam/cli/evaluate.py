@@ -15,10 +15,9 @@ from cuikslam.cli._common import CommandError, check_figure_path, check_output_p
 from cuikslam.errors import InputFileError
 from cuikslam.log.reader import read_log_file
 from cuikslam.log.records import Log
-from cuikslam.results.association import named_landmarks
+from cuikslam.results.association import named_landmarks, true_outliers
 from cuikslam.results.evaluate import Evaluation, evaluate, evaluation_to_json
 from cuikslam.results.io import read_result_file
-from cuikslam.results.measurement_check import check_log
 from cuikslam.results.solution import no_hypothesis
 from cuikslam.simulate.truth import read_truth_file
 
@@ -162,10 +161,11 @@ def run_evaluate(
     if not solution.hypotheses:
         raise CommandError(f"{result_path}: no hypothesis to evaluate ({no_hypothesis(solution)})")
     outside: list[int] = []  # the true outliers, when hypotheses may take some
+    unchecked: list[int] = []
     if log is not None and log.outlier_bounds and log.has_unknown_correspondence:
-        outside = check_log(log, truth).outside_observations
+        outside, unchecked = true_outliers(log, truth)
     try:
-        ev = evaluate(solution, truth, named, outside)
+        ev = evaluate(solution, truth, named, outside, unchecked)
     except ValueError as err:
         raise CommandError(f"{truth_path}: does not match {result_path}: {err}") from None
     ev.notes[:0] = notes

@@ -15,7 +15,7 @@ from cuikslam.cli._common import CommandError, check_output_path, progress_bar, 
 from cuikslam.cli.warm_up import note_compiling
 from cuikslam.log.reader import read_log_file
 from cuikslam.options import SolveOptions
-from cuikslam.results.association import named_landmarks, truth_verdict
+from cuikslam.results.association import named_landmarks, true_outliers, truth_verdict
 from cuikslam.results.io import write_result_csv, write_result_file
 from cuikslam.results.measurement_check import check_log
 from cuikslam.results.overview import overview_lines
@@ -91,10 +91,11 @@ def report_truth(
     console: Console,
     named: set[str] = frozenset(),
     outside: Collection[int] = (),
+    unchecked: Collection[int] = (),
 ) -> bool:
     """Print :func:`~cuikslam.results.association.truth_verdict`; True when the guarantee
-    held (``outside``: the observations that miss their truth, the true outliers)."""
-    verdict = truth_verdict(solution, truth, named, outside)
+    held (``outside``, ``unchecked``: see :func:`~cuikslam.results.association.true_outliers`)."""
+    verdict = truth_verdict(solution, truth, named, outside, unchecked)
     for line in verdict.lines:
         console.print(line)
     return verdict.ok
@@ -174,10 +175,20 @@ def run_solve(
             console.print(message)
     status = 0
     outside: list[int] = []  # with an outliers declaration, the true outliers
+    unchecked: list[int] = []
+    applies = True  # the truth meets the log's declaration, so the guarantee applies
     if truth is not None and log.outlier_bounds:
-        outside = check_log(log, truth).outside_observations
-    if truth is not None and not report_truth(
-        solution, truth, console, named_landmarks(log), outside
+        from cuikslam.outliers import check_declaration
+
+        found = check_log(log, truth)
+        applies, why = check_declaration(log, found.outside_observations, found.moves)
+        if not applies:
+            console.print(f"truth check: no guarantee applies: {why}")
+        outside, unchecked = true_outliers(log, truth)
+    if (
+        truth is not None
+        and not report_truth(solution, truth, console, named_landmarks(log), outside, unchecked)
+        and applies
     ):
         status = 1
     if solution.refuted:

@@ -25,7 +25,15 @@ from cuikslam.results.solution import OUTLIER, Hypothesis, Solution, check_truth
 from cuikslam.results.summary import summary_holds
 from cuikslam.simulate.truth import GroundTruth
 
-__all__ = ["TruthVerdict", "named_landmarks", "partition", "rank_of", "truth_verdict"]
+__all__ = [
+    "TruthVerdict",
+    "named_landmarks",
+    "partition",
+    "rank_of",
+    "true_outliers",
+    "true_ranks",
+    "truth_verdict",
+]
 
 MISSES_SHOWN = 20
 """Boxes that miss the truth listed in a verdict at most."""
@@ -58,23 +66,54 @@ def named_landmarks(log: Log) -> set[str]:
     return {r.landmark for r in log.records if getattr(r, "landmark", None) is not None}
 
 
+def true_outliers(log: Log, truth: GroundTruth) -> tuple[list[int], list[int]]:
+    """The unlabelled observations (indices in log order) whose interval misses the truth,
+    and those that cannot be checked (from an uncertain sensor offset): what the true
+    hypothesis of a search takes as outliers, for sure and perhaps. Named observations are
+    left out: the search never takes them as outliers (their declaration is applied by the
+    relaxed intersection, whose boxes hold the truth whenever it holds)."""
+    from cuikslam.results.measurement_check import check_log
+
+    found = check_log(log, truth)
+    unlabelled = {i for i, o in enumerate(log.observations) if o.landmark is None}
+    return (
+        [i for i in found.outside_observations if i in unlabelled],
+        [i for i in found.unchecked_observations if i in unlabelled],
+    )
+
+
 def rank_of(
     hypotheses: Sequence[Hypothesis],
     assignment: Sequence[str],
     named: Collection[str] = (),
     outside: Collection[int] = (),
+    unchecked: Collection[int] = (),
 ) -> int | None:
     """The rank (1 for the first) of the true hypothesis; None when none is.
 
     Without outliers it is the hypothesis whose partition is that of ``assignment``. A
     hypothesis that takes observations as outliers (an ``outliers`` declaration) is true
     when its partition of the other observations is that of ``assignment`` and its outliers
-    are exactly the observations whose interval misses the truth (``outside``, indices in
-    log order); failing that, the first whose outliers include them (its constraints are a
-    subset of the true hypothesis', so its boxes hold the truth too).
+    are the observations whose interval misses the truth (``outside``, indices in log
+    order), and perhaps some of those that cannot be checked (``unchecked``); failing that,
+    the first whose outliers include them (its constraints are a subset of the true
+    hypothesis', so its boxes hold the truth too).
     """
-    truth_out = set(outside)
-    found = None
+    ranks = true_ranks(hypotheses, assignment, named, outside, unchecked)
+    return ranks[0] if ranks else None
+
+
+def true_ranks(
+    hypotheses: Sequence[Hypothesis],
+    assignment: Sequence[str],
+    named: Collection[str] = (),
+    outside: Collection[int] = (),
+    unchecked: Collection[int] = (),
+) -> list[int]:
+    """Every rank that may be the true hypothesis (see :func:`rank_of`), those whose
+    outliers are all outside or unchecked first."""
+    truth_out, maybe = set(outside), set(unchecked)
+    exact, wider = [], []
     for rank, h in enumerate(hypotheses, start=1):
         mine = set(h.outliers)
         if not truth_out <= mine:
@@ -82,10 +121,8 @@ def rank_of(
         keep = [i for i in range(len(assignment)) if i not in mine]
         ours = partition([h.assignment[i] for i in keep], named)
         if ours == partition([assignment[i] for i in keep], named):
-            if mine == truth_out:
-                return rank
-            found = rank if found is None else found
-    return found
+            (exact if mine <= truth_out | maybe else wider).append(rank)
+    return exact + wider
 
 
 @dataclass
@@ -103,6 +140,7 @@ def truth_verdict(
     truth: GroundTruth,
     named: Collection[str] = frozenset(),
     outside: Collection[int] = (),
+    unchecked: Collection[int] = (),
 ) -> TruthVerdict:
     """Whether the true hypothesis survived and its boxes contain the truth.
 
@@ -123,8 +161,12 @@ def truth_verdict(
         Landmark ids the log names (see :func:`named_landmarks`).
     outside : collection of int
         With an ``outliers`` declaration, the observations (log order) whose interval misses
-        the truth (:func:`cuikslam.results.measurement_check.check_log`): the true
-        hypothesis takes exactly those as outliers (see :func:`rank_of`).
+        the truth (:func:`true_outliers`): the true hypothesis takes those as outliers (see
+        :func:`rank_of`).
+    unchecked : collection of int
+        The observations whose truth cannot be checked (:func:`true_outliers`): when the
+        true hypothesis takes one of them as a landmark's and a box misses the truth, the
+        verdict says it cannot tell (that observation may be the outlier).
 
     Returns
     -------
@@ -146,17 +188,25 @@ def truth_verdict(
     marked = [OUTLIER if i in set(outside) else a for i, a in enumerate(truth.assignment)]
     if not solution.hypotheses:  # survivors remain, none reported
         return _truth_not_reported(solution, marked, named)
-    rank = rank_of(solution.hypotheses, truth.assignment, named, outside)
-    if rank is None:
+    ranks = true_ranks(solution.hypotheses, truth.assignment, named, outside, unchecked)
+    if not ranks:
         return _truth_not_reported(solution, marked, named)
-    h = solution.hypotheses[rank - 1]
-    names = {
-        ours: theirs
-        for ours, theirs in zip(h.assignment, truth.assignment, strict=True)
-        if ours != OUTLIER
-    }
-    landmark_xy = {ours: truth.exact_landmark(theirs) for ours, theirs in names.items()}
-    report = check_truth(h, truth.pose_ids, truth.exact_poses(), landmark_xy)
+    for rank in ranks:  # an unchecked observation may be an outlier: the first that holds
+        h = solution.hypotheses[rank - 1]
+        report = _check(h, truth)
+        doubtful = set(unchecked) - set(h.outliers)
+        if report.ok or not doubtful:
+            break
+    if not report.ok and doubtful:
+        return TruthVerdict(
+            True,
+            [
+                f"truth check: cannot tell: {len(report.misses)} boxes of the hypothesis "
+                f"closest to the truth miss it, and it takes {len(doubtful)} observation(s) "
+                "made from an uncertain sensor offset as sightings, whose truth the truth file "
+                "cannot check (any of them may be an outlier)"
+            ],
+        )
     if not report.ok:
         return TruthVerdict(
             False,
@@ -177,6 +227,17 @@ def truth_verdict(
             f"{report.checked} bounds all contain the truth"
         ],
     )
+
+
+def _check(h: Hypothesis, truth: GroundTruth):
+    """Whether ``h``'s boxes hold the truth (its landmarks named as the truth names them)."""
+    names = {
+        ours: theirs
+        for ours, theirs in zip(h.assignment, truth.assignment, strict=True)
+        if ours != OUTLIER
+    }
+    landmark_xy = {ours: truth.exact_landmark(theirs) for ours, theirs in names.items()}
+    return check_truth(h, truth.pose_ids, truth.exact_poses(), landmark_xy)
 
 
 def _truth_not_reported(

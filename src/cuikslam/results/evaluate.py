@@ -98,6 +98,10 @@ class Evaluation:
     """Poses whose truth lies in their box whatever the correspondence (the result's
     ``correspondence.pose_hull``, over every survivor); None without that hull."""
     hull_checked: int | None = None
+    doubtful: int = 0
+    """Observations from an uncertain sensor offset, whose truth cannot be checked, that the
+    evaluated true hypothesis takes as sightings: when its boxes miss the truth, one of
+    them may be an outlier, so nothing can be said."""
 
     @property
     def poses_with_truth(self) -> int:
@@ -126,6 +130,8 @@ class Evaluation:
             return False  # the hull over every survivor misses a true pose
         sole = self.complete and self.survivors == self.reported == 1
         if self.evaluated_is_true or (sole and self.correct_associations is None):
+            if self.misses and self.doubtful:
+                return None  # an unchecked observation may be the outlier
             return not self.misses  # a sole survivor of a complete search is the true one
         if self.correct_associations is not None and self.complete:
             if self.survivors <= self.reported:
@@ -203,6 +209,7 @@ def evaluate(
     truth: GroundTruth,
     named: Collection[str] = frozenset(),
     outside: Collection[int] = (),
+    unchecked: Collection[int] = (),
 ) -> Evaluation:
     """Measure ``solution`` against ``truth`` (see the module docstring).
 
@@ -220,6 +227,9 @@ def evaluate(
         With an ``outliers`` declaration and unknown correspondence, the observations that
         miss their truth: the true hypothesis takes them as outliers (see
         :func:`~cuikslam.results.association.rank_of`).
+    unchecked : collection of int
+        The observations whose truth cannot be checked
+        (:func:`~cuikslam.results.association.true_outliers`).
 
     Returns
     -------
@@ -250,7 +260,7 @@ def evaluate(
 
     true_rank = None
     if truth.assignment or n_obs == 0:
-        true_rank = rank_of(solution.hypotheses, truth.assignment, named, outside)
+        true_rank = rank_of(solution.hypotheses, truth.assignment, named, outside, unchecked)
     rank = true_rank or 1
     h = solution.hypotheses[rank - 1]
 
@@ -317,6 +327,7 @@ def evaluate(
         notes=notes,
         hull_inside=hull_inside,
         hull_checked=hull_checked,
+        doubtful=len(set(unchecked) - set(h.outliers)) if true_rank == rank else 0,
     )
 
 

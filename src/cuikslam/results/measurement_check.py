@@ -35,6 +35,8 @@ class Outside:
     observations_checked: int = 0
     observations_unchecked: int = 0
     """Observations with truth from an offset that is an interval (see the module docstring)."""
+    unchecked_observations: list[int] = field(default_factory=list)
+    """Their indices (log order)."""
     moves: int = 0
     moves_checked: int = 0
     outside_observations: list[int] = field(default_factory=list)
@@ -81,7 +83,9 @@ def check_log(log: Log, truth: GroundTruth) -> Outside:
             p = pose.get(record.pose)
             if p is not None and record.offset is not None:
                 p = _sensor_pose(p, record.offset)
-                out.observations_unchecked += p is None
+                if p is None:
+                    out.observations_unchecked += 1
+                    out.unchecked_observations.append(index)
             if p is not None and lid is not None:
                 out.observations_checked += 1
                 q = mark[lid]
