@@ -23,10 +23,7 @@ from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.log.records import (
     Log,
     Observation,
-    Odometry,
     OutlierBound,
-    PosePrior,
-    RelativePose,
 )
 from cuikslam.narrowing.outliers import NO_LIMIT, OutlierScope, RelaxedReport
 from cuikslam.results.solution import OUTLIER, Hypothesis, Solution
@@ -41,7 +38,6 @@ __all__ = [
     "outlier_messages",
     "outlier_scope",
     "outliers_to_json",
-    "pose_order",
     "reject_unknown",
     "search_outliers_json",
 ]
@@ -115,18 +111,6 @@ def hypothesis_outlier_messages(log: Log, solution: Solution) -> list[str]:
     return lines
 
 
-def pose_order(log: Log) -> dict[int, int]:
-    """Each pose's rank in the order the log first mentions it."""
-    order: dict[int, int] = {}
-    for record in log.records:
-        if isinstance(record, PosePrior | Observation):
-            order.setdefault(record.pose, len(order))
-        elif isinstance(record, Odometry | RelativePose):
-            order.setdefault(record.source, len(order))
-            order.setdefault(record.target, len(order))
-    return order
-
-
 def outlier_scope(log: Log, graph: KinematicGraph) -> OutlierScope:
     """Every observation of ``log`` as a member that may be an outlier, with the log's
     declared allowances (``graph`` is ``KinematicGraph.from_log(log)``: its k-th
@@ -142,7 +126,7 @@ def outlier_scope(log: Log, graph: KinematicGraph) -> OutlierScope:
             per_block, window = bound.at_most, bound.window
     block = np.zeros(members.size, dtype=np.int64)
     if window is not None:
-        rank = pose_order(log)
+        rank = log.pose_order()
         block[:] = [rank[o.pose] // window for o in observations]
     return OutlierScope(members=members, block=block, at_most=at_most, per_block=per_block)
 
@@ -219,7 +203,7 @@ def check_declaration(log: Log, outside: list[int], moves_outside: int = 0) -> t
         True when every ``outliers`` record holds (and no move misses its truth, which no
         declaration covers), and one sentence saying why.
     """
-    rank = pose_order(log)
+    rank = log.pose_order()
     observations = log.observations
     parts = []
     holds = True

@@ -6,7 +6,7 @@ then has one more option after its candidate landmarks and "a new landmark": *ou
 observation explains nothing and adds no constraint. The option is open while the node's
 path stays within the declaration: at most ``at_most`` outlier decisions in all, and with
 a window at most ``per_block`` in each block of poses (the blocks of
-:func:`cuikslam.outliers.pose_order`, as with known correspondence). Both counts are
+:meth:`cuikslam.log.records.Log.pose_order`, as with known correspondence). Both counts are
 functions of the path only, so exploring a subtree stays a function of its prefix.
 
 The declaration's budget is not shared between the two kinds of observations: the
@@ -14,11 +14,11 @@ unlabelled ones get the whole declaration in the search, and the named ones of t
 log get it too in the q-relaxed intersection at the root (:func:`relax_named`). Sound,
 only weaker than sharing it.
 
-An outlier is a detection whose value is wrong: the landmark it truly detected may be any
-landmark in view. Negative information (UNSEEN constraints) is therefore left out for every
-pose with an outlier decision on the node's path, and for every pose with a named
-observation (which may be an outlier too); named landmarks of a scan exclude nothing from
-its unlabelled observations.
+An outlier is a detection whose value is wrong: the landmark it truly detected may be none
+(a phantom) or any landmark in view. Negative information (UNSEEN constraints) is therefore
+left out for every pose with an outlier decision on the node's path, and for every pose with
+a named observation (which may be an outlier too); named landmarks of a scan exclude
+nothing from its unlabelled observations.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import numpy as np
 
 from cuikslam.graph.encoding import N_SLOTS
 from cuikslam.hypotheses._shared import linked
-from cuikslam.log.records import Log, Observation, Odometry, PosePrior, RelativePose
+from cuikslam.log.records import Log
 from cuikslam.narrowing.outliers import NO_LIMIT, OutlierScope, RelaxedReport, narrow_with_outliers
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Status
 
@@ -38,19 +38,6 @@ __all__ = ["OUTLIER", "OutlierOption", "outlier_option", "relax_named"]
 
 OUTLIER = -1
 """The landmark number of the outlier option in a node's decisions."""
-
-
-def _pose_order(log: Log) -> dict[int, int]:
-    """Each pose's rank in the order the log first mentions it (as
-    :func:`cuikslam.outliers.pose_order`, which this module cannot import)."""
-    order: dict[int, int] = {}
-    for record in log.records:
-        if isinstance(record, PosePrior | Observation):
-            order.setdefault(record.pose, len(order))
-        elif isinstance(record, Odometry | RelativePose):
-            order.setdefault(record.source, len(order))
-            order.setdefault(record.target, len(order))
-    return order
 
 
 @dataclass(frozen=True)
@@ -91,7 +78,7 @@ def outlier_option(log: Log, decision_poses: Sequence[int]) -> OutlierOption | N
             at_most = bound.at_most
         else:
             per_block, window = bound.at_most, bound.window
-    rank = _pose_order(log)
+    rank = log.pose_order()
     named = [o.pose for o in log.observations if o.landmark is not None]
 
     def block(pose: int) -> int:

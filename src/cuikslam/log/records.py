@@ -213,13 +213,19 @@ class Log:
     @property
     def pose_ids(self) -> list[int]:
         """Every pose the log mentions, sorted."""
-        ids: set[int] = set()
+        return sorted(self.pose_order())
+
+    def pose_order(self) -> dict[int, int]:
+        """Each pose the log mentions and its rank in the order the log first mentions it
+        (the blocks of poses of an ``outliers`` window follow it)."""
+        order: dict[int, int] = {}
         for r in self.records:
             if isinstance(r, PosePrior | Observation):
-                ids.add(r.pose)
+                order.setdefault(r.pose, len(order))
             elif isinstance(r, Odometry | RelativePose):
-                ids.update((r.source, r.target))
-        return sorted(ids)
+                order.setdefault(r.source, len(order))
+                order.setdefault(r.target, len(order))
+        return order
 
     @property
     def has_unknown_correspondence(self) -> bool:
