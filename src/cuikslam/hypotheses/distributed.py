@@ -30,7 +30,7 @@ import numpy as np
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import portion
 from cuikslam.hypotheses.bisection import Bisection, allotment, refute_by_bisection
-from cuikslam.hypotheses.explorer import Explorer, Node, SearchStatistics
+from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.search import (
@@ -38,7 +38,6 @@ from cuikslam.hypotheses.search import (
     DEFAULT_STRENGTHEN_DURING,
     DEFAULT_STRENGTHEN_LIMIT,
     SEARCH_SHARE,
-    _Tally,
     finish_search,
 )
 from cuikslam.hypotheses.subtrees import (
@@ -49,6 +48,8 @@ from cuikslam.hypotheses.subtrees import (
     explore_prefixes,
     replay_all,
 )
+from cuikslam.hypotheses.tally import Tally
+from cuikslam.hypotheses.tree import Node, SearchStatistics
 from cuikslam.log.records import Log
 from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
@@ -159,7 +160,7 @@ def search_distributed(
     explorer.deadline = deadline
     messages: list[str] = []
     root = explorer.root()
-    tally = _Tally(explorer, on_survivor)
+    tally = Tally(explorer, on_survivor)
     keep = max(1, max_hypotheses)
     searching = portion(deadline, SEARCH_SHARE)  # the rest decides its survivors
     run = _Run(explorer, searching, max_nodes, keep)
@@ -348,7 +349,7 @@ class _Run:
 
 
 def _merge(
-    explorer: Explorer, root: Node, tally: _Tally, results: list[SubtreeResult], best: list
+    explorer: Explorer, root: Node, tally: Tally, results: list[SubtreeResult], best: list
 ) -> list[Node]:
     """Fold the tasks' results into ``explorer.stats`` and ``tally`` as one depth-first
     search would; return the ``best`` survivors as nodes of ``explorer``."""

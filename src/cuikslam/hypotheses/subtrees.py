@@ -19,9 +19,11 @@ from typing import Any
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.hypotheses.explorer import Budget, Explorer, Node, SearchStatistics
+from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.problem import Problem, build_problem
-from cuikslam.hypotheses.search import MAX_TALLIED, _rank_key, _Tally, explore
+from cuikslam.hypotheses.search import _rank_key, explore
+from cuikslam.hypotheses.tally import MAX_TALLIED, Tally
+from cuikslam.hypotheses.tree import Budget, Node, SearchStatistics
 from cuikslam.log.records import Log
 
 __all__ = [
@@ -99,7 +101,7 @@ class SubtreeResult:
     hull_lo: np.ndarray
     hull_hi: np.ndarray
     counts: dict[str, int]
-    """Fields of :class:`~.explorer.SearchStatistics` that add up."""
+    """Fields of :class:`~.tree.SearchStatistics` that add up."""
     peak_frontier: int
     done: float
     """Share of the whole tree this task decided."""
@@ -203,7 +205,7 @@ def explore_prefixes(
     replayed, replay_s = explorer.stats.branch_points, time.thread_time() - cpu
     explorer.stats = SearchStatistics()
     applications = explorer.graph.applications
-    tally = _Tally(explorer, None)
+    tally = Tally(explorer, None)
     decided: list[list[int]] = []
     placed: list[tuple[int, ...]] = []
     position = {tuple(d): pos for pos, d in prefixes}

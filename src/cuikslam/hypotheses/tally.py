@@ -1,0 +1,86 @@
+"""What every survivor of a search contributes to its summary, reported in detail or not:
+its assignment (for the correspondence summary, up to ``MAX_TALLIED`` of them) and its pose
+boxes (joined into the hull that holds whatever the correspondence)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from cuikslam.hypotheses.explorer import Explorer
+from cuikslam.hypotheses.outlier_option import OUTLIER
+from cuikslam.hypotheses.tree import Node
+from cuikslam.results.solution import OUTLIER as OUTLIER_MARK
+
+__all__ = ["MAX_TALLIED", "Tally"]
+
+MAX_TALLIED = 100_000
+"""Survivors whose assignments the correspondence summary holds at most."""
+
+
+class Tally:
+    """What every survivor contributes to the summary, reported in detail or not."""
+
+    def __init__(self, explorer: Explorer, on_survivor: Callable[[list[str]], None] | None):
+        self.explorer = explorer
+        self.on_survivor = on_survivor
+        self.assignments: list[list[str] | None] = []
+        self.new_mark = "+"
+        """Prefix of the landmarks a hypothesis adds (longer if a log id starts with it)."""
+        while any(name.startswith(self.new_mark) for name in explorer.problem.named):
+            self.new_mark += "+"
+        self._position: dict[tuple[int, ...], int] = {}
+        pose_ids = sorted(explorer.problem.pose_x)
+        xs = np.array([explorer.problem.pose_x[q] for q in pose_ids], dtype=np.int64)
+        self._cols = (xs[:, None] + np.arange(3)).ravel()
+        self._lo = np.full(len(self._cols), np.inf)
+        self._hi = np.full(len(self._cols), -np.inf)
+
+    def add(self, node: Node) -> None:
+        self.add_assignment(node.decisions())
+        self.add_boxes(*self.explorer.graph.values(node.overlay, self._cols))
+
+    def add_assignment(self, decisions: list[int]) -> None:
+        """A survivor's assignment, given by its decisions (landmark numbers)."""
+        p = self.explorer.problem
+        tallied = len(self.assignments) < MAX_TALLIED
+        if tallied or self.on_survivor is not None:
+            assignment = [""] * p.n_observations
+            for position, n in p.named_assignment.items():
+                assignment[position] = p.named[n]
+            n_named, mark = len(p.named), self.new_mark
+            for d, n in zip(p.decisions, decisions, strict=True):
+                # new landmarks are numbered in the order the log first sees them
+                assignment[d.position] = (
+                    OUTLIER_MARK
+                    if n == OUTLIER
+                    else p.named[n]
+                    if n < n_named
+                    else f"{mark}{n - n_named + 1}"
+                )
+            if self.on_survivor is not None:
+                self.on_survivor(assignment)
+            if tallied:
+                self._position[tuple(decisions)] = len(self.assignments)
+                self.assignments.append(assignment)
+
+    def add_boxes(self, lo: np.ndarray, hi: np.ndarray) -> None:
+        """Pose boxes (at the columns ``_cols``) of survivors, joined into the hull."""
+        np.minimum(self._lo, lo, out=self._lo)
+        np.maximum(self._hi, hi, out=self._hi)
+
+    def discard(self, node: Node) -> None:
+        """Forget a survivor proven impossible after the search (its pose boxes stay in the
+        hull, which remains a sound outer bound)."""
+        where = self._position.pop(tuple(node.decisions()), None)
+        if where is not None:
+            self.assignments[where] = None
+
+    def kept(self) -> list[list[str]]:
+        """The assignments of the survivors not discarded."""
+        return [a for a in self.assignments if a is not None]
+
+    def poses(self) -> np.ndarray:
+        """Hull over the survivors of every pose box, shape (n_poses, 3, 2)."""
+        return np.stack([self._lo, self._hi], axis=-1).reshape(-1, 3, 2)

@@ -1,0 +1,127 @@
+"""The search tree's data: a node (a partial hypothesis), the budget that stops a search,
+and the counts that tell how it went (:mod:`.explorer` expands nodes, :mod:`.search`
+walks the tree)."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from cuikslam.hypotheses._shared import Overlay
+
+__all__ = [
+    "AMBIGUITY_LP_GAP",
+    "AMBIGUITY_LP_MIN_DECISIONS",
+    "Budget",
+    "Node",
+    "SearchStatistics",
+]
+
+AMBIGUITY_LP_MIN_DECISIONS = 64
+"""Searches of fewer decisions do without the ``lp`` level on ambiguous nodes: their hull
+boxes have not grown far and their trees are small (on a 12-pose world the level cost
+8 times the search and refuted nothing more)."""
+AMBIGUITY_LP_GAP = 8
+"""Decisions after a node narrowed to ``lp`` before another node on its path may be: each
+such node's box serves the next decisions of its whole subtree. The gap doubles after a
+narrowing that left as many children, and is reset after one that cut some: where the level
+does not help (wide odometry, say) its cost fades along the path. Rules on the node's path
+only, so that exploring a subtree stays a function of its prefix (on one worker or many)."""
+
+
+@dataclass
+class SearchStatistics:
+    """Counts that tell how the search went."""
+
+    branch_points: int = 0
+    """Nodes expanded: an unlabelled observation decided in one partial hypothesis."""
+    candidates: int = 0
+    """(node, landmark) pairs considered, plus each node's "new landmark" option."""
+    excluded_same_scan: int = 0
+    """Candidates excluded because the same scan already saw that landmark."""
+    gated: int = 0
+    """Candidates rejected by the interval gate, without propagation."""
+    proven_empty: int = 0
+    """Children whose constraints contracted to empty (a proof)."""
+    refuted_by_negative_information: int = 0
+    """Children refuted by UNSEEN constraints (a landmark in view that the robot did not see)."""
+    unseen_constraints: int = 0
+    """UNSEEN constraints added (pose-landmark pairs close enough to matter)."""
+    created: int = 0
+    """Children created (each a consistent-looking partial hypothesis)."""
+    refuted_in_local_frame: int = 0
+    """Children whose window around the decided pose is inconsistent in that pose's frame."""
+    refuted_by_consistency: int = 0
+    """Nodes or survivors of hull consistency refuted by the stronger consistency level."""
+    refuted_by_bisection: int = 0
+    """Leaves (when the search reaches them) and survivors (after it) proven impossible by
+    bisecting their boxes (:mod:`.bisection`); those refuted as leaves never count as
+    survivors."""
+    refuted_by_class_prior: int = 0
+    """Children breaking a class prior of the log: one landmark too many of a class, or two
+    distinct landmarks of a class closer than its separation."""
+    survivors: int = 0
+    """Leaves not refuted: complete hypotheses (all of them, reported or not)."""
+    unexplored_subtrees: int = 0
+    """Subtrees left when a budget stopped the search (0 when complete)."""
+    explored_fraction: float = 0.0
+    """Share of the search tree decided (children weigh equally within their parent)."""
+    peak_frontier: int = 0
+    """Most nodes waiting on the depth-first stack at once."""
+    operator_applications: int = 0
+    ambiguity_lp: int = 0
+    """Nodes about to branch that were narrowed to the ``lp`` level first."""
+    ambiguity_lp_seconds: float = 0.0
+    """Time those narrowings took."""
+    outlier_options: int = 0
+    """Children that take their observation as an outlier (an ``outliers`` declaration)."""
+
+
+@dataclass(frozen=True, slots=True)
+class Node:
+    """A partial hypothesis: the first ``depth`` decisions made."""
+
+    depth: int
+    overlay: Overlay
+    blocks: tuple[int, ...]
+    """Decision that created each anonymous landmark, in order (their landmark numbers
+    follow the named landmarks')."""
+    assigned: tuple | None
+    """Landmark number of each decision as a persistent list ``(number, previous)``, newest
+    first, so a child shares its parent's history."""
+    share: float = 1.0
+    """Fraction of the whole tree under this node (for progress and the budget account)."""
+    level: str = "hull"
+    """The consistency level its boxes are known to reach."""
+    lp_depth: int = -AMBIGUITY_LP_GAP
+    """Depth of the last node on its path narrowed to ``lp`` before it branched."""
+    lp_gap: int = AMBIGUITY_LP_GAP
+    """Decisions from that node to the next one that may be (see ``AMBIGUITY_LP_GAP``)."""
+    outliers: tuple[int, ...] = ()
+    """Decisions on its path taken as outliers (landmark number ``OUTLIER``)."""
+
+    def decisions(self) -> list[int]:
+        """Landmark number of every decision made, oldest first."""
+        out = []
+        node = self.assigned
+        while node is not None:
+            out.append(node[0])
+            node = node[1]
+        return out[::-1]
+
+
+@dataclass
+class Budget:
+    """When the search stops before it is complete (None: no limit)."""
+
+    deadline: float | None = None
+    """A :func:`time.perf_counter` value."""
+    max_nodes: int | None = None
+
+    def exhausted(self, nodes: int) -> str | None:
+        """Why the search must stop now, or None."""
+        if self.deadline is not None and time.perf_counter() > self.deadline:
+            return "time budget"
+        if self.max_nodes is not None and nodes >= self.max_nodes:
+            return "node budget"
+        return None
