@@ -107,7 +107,7 @@ def _cmd_import(args: argparse.Namespace) -> int:
         posts_at_most=None if args.no_post_count else posts,
         post_separation=args.post_separation,
     )
-    declare_outliers(log, args, not args.known)
+    declare_outliers(log, args)
     write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)
     return 0
 

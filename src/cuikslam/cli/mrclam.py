@@ -86,7 +86,7 @@ def add_outlier_options(p: argparse.ArgumentParser) -> None:
     )
 
 
-def declare_outliers(log, args: argparse.Namespace, unknown: bool) -> None:
+def declare_outliers(log, args: argparse.Namespace) -> None:
     """Put the ``outliers`` records the options ask for at the head of ``log``."""
     from cuikslam.log.records import OutlierBound
 
@@ -192,7 +192,7 @@ def _cmd_import_mrclam(args: argparse.Namespace) -> int:
         if type(err) is not ValueError:  # an InputFileError names its file: main prints it
             raise
         raise CommandError(f"import mrclam: {err}") from None
-    declare_outliers(log, args, args.unknown)
+    declare_outliers(log, args)
     write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)
     if not args.quiet:
         print(report.describe(), file=sys.stderr)
