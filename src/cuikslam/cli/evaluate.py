@@ -18,6 +18,7 @@ from cuikslam.log.records import Log
 from cuikslam.results.association import named_landmarks, true_outliers
 from cuikslam.results.evaluate import Evaluation, evaluate, evaluation_to_json
 from cuikslam.results.io import read_result_file
+from cuikslam.results.measurement_check import check_log
 from cuikslam.results.solution import no_hypothesis
 from cuikslam.simulate.truth import read_truth_file
 
@@ -163,7 +164,7 @@ def run_evaluate(
     outside: list[int] = []  # the true outliers, when hypotheses may take some
     unchecked: list[int] = []
     if log is not None and log.outlier_bounds and log.has_unknown_correspondence:
-        outside, unchecked = true_outliers(log, truth)
+        outside, unchecked = true_outliers(log, check_log(log, truth))
     try:
         ev = evaluate(solution, truth, named, outside, unchecked)
     except ValueError as err:

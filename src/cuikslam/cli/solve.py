@@ -184,7 +184,7 @@ def run_solve(
         applies, why = check_declaration(log, found.outside_observations, found.moves)
         if not applies:
             console.print(f"truth check: no guarantee applies: {why}")
-        outside, unchecked = true_outliers(log, truth)
+        outside, unchecked = true_outliers(log, found)
     if (
         truth is not None
         and not report_truth(solution, truth, console, named_landmarks(log), outside, unchecked)

@@ -21,6 +21,7 @@ from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
 
 from cuikslam.log.records import Log
+from cuikslam.results.measurement_check import Outside
 from cuikslam.results.solution import OUTLIER, Hypothesis, Solution, check_truth
 from cuikslam.results.summary import summary_holds
 from cuikslam.simulate.truth import GroundTruth
@@ -66,15 +67,13 @@ def named_landmarks(log: Log) -> set[str]:
     return {r.landmark for r in log.records if getattr(r, "landmark", None) is not None}
 
 
-def true_outliers(log: Log, truth: GroundTruth) -> tuple[list[int], list[int]]:
+def true_outliers(log: Log, found: Outside) -> tuple[list[int], list[int]]:
     """The unlabelled observations (indices in log order) whose interval misses the truth,
-    and those that cannot be checked (from an uncertain sensor offset): what the true
+    and those that cannot be checked (from an uncertain sensor offset), out of ``found``
+    (:func:`~cuikslam.results.measurement_check.check_log` of ``log``): what the true
     hypothesis of a search takes as outliers, for sure and perhaps. Named observations are
     left out: the search never takes them as outliers (their declaration is applied by the
     relaxed intersection, whose boxes hold the truth whenever it holds)."""
-    from cuikslam.results.measurement_check import check_log
-
-    found = check_log(log, truth)
     unlabelled = {i for i, o in enumerate(log.observations) if o.landmark is None}
     return (
         [i for i in found.outside_observations if i in unlabelled],
