@@ -18,12 +18,20 @@ Three parts, each run as whole processes (``--part``, default all):
     minus what the stages account for.
 ``importtime``
     The slowest imports of ``python -X importtime`` (cumulative) for the ``paper`` path.
+``--fresh-install``
+    Not a part: what a user sees. A new venv, ``pip install SOURCE`` timed (by default
+    SOURCE is this repository's ``HEAD``, exported with ``git archive``; ``--source DIR``
+    takes a tree as it is), then ``cuikslam paper`` three times (``--repeat``) in a temporary
+    folder, each run marked cold when it says it compiled the kernels, else warm.
+    ``--no-kernel-cache`` builds with ``CUIKSLAM_BUILD_KERNEL_CACHE=0`` (the wheel without
+    compiled kernels, as before the build hook): the A/B.
 
 The load average is printed with every figure (the machine is shared). Results go to
 ``benchmarks/results/startup.json``.
 
     python benchmarks/bench_startup.py [--part whole|breakdown|importtime] [--repeat 3]
         [--paper-args "--time-budget 60"] [--skip-cold]
+    python benchmarks/bench_startup.py --fresh-install [--source DIR] [--no-kernel-cache]
 """
 
 from __future__ import annotations
@@ -111,27 +119,32 @@ def load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
 
-def run_process(argv: list[str], env: dict[str, str] | None = None) -> dict[str, float | str]:
+def run_process(
+    argv: list[str], env: dict[str, str] | None = None, cwd: Path | None = None
+) -> dict[str, float | str]:
     """Run ``argv`` to the end; its wall clock, child CPU seconds, stderr and load."""
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
     start = time.perf_counter()
-    done = subprocess.run(argv, capture_output=True, text=True, env=env, check=False)
+    done = subprocess.run(argv, capture_output=True, text=True, env=env, check=False, cwd=cwd)
     wall = time.perf_counter() - start
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if done.returncode != 0:
         raise RuntimeError(f"{argv} exited with {done.returncode}: {done.stderr[-2000:]}")
-    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    user = after.ru_utime - before.ru_utime
     return {
         "wall_s": wall,
-        "cpu_s": cpu,
+        "cpu_s": user + after.ru_stime - before.ru_stime,
+        "user_s": user,
         "load": load(),
         "stdout": done.stdout,
         "stderr": done.stderr,
     }
 
 
-def paper_command(figure: Path, extra: list[str]) -> list[str]:
-    """``cuikslam paper`` as a user types it (the installed entry point)."""
+def paper_command(figure: Path, extra: list[str], venv: Path | None = None) -> list[str]:
+    """``cuikslam paper`` as a user types it (the installed entry point, or ``venv``'s)."""
+    if venv is not None:
+        return [str(venv / "bin" / "cuikslam"), "paper", "--figure", str(figure), *extra]
     exe = shutil.which("cuikslam") or sys.executable
     head = [exe] if exe != sys.executable else [exe, "-m", "cuikslam.cli.main"]
     return [*head, "paper", "--figure", str(figure), *extra]
@@ -214,6 +227,41 @@ def part_importtime(top: int = 15) -> list[tuple[str, float]]:
     return rows
 
 
+def fresh_install(source: Path | None, repeat: int, kernel_cache: bool, tmp: Path) -> dict:
+    """A new venv, ``pip install SOURCE`` timed, then ``repeat`` runs of ``cuikslam paper``."""
+    if source is None:  # the committed state, not a half-edited working tree
+        source = tmp / "src"
+        source.mkdir()
+        archive = subprocess.run(
+            ["git", "-C", str(HERE.parent), "archive", "HEAD"], capture_output=True, check=True
+        )
+        subprocess.run(["tar", "-x", "-C", str(source)], input=archive.stdout, check=True)
+    venv = tmp / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    env["CUIKSLAM_BUILD_KERNEL_CACHE"] = "1" if kernel_cache else "0"
+    load_before = load()
+    install = run_process([str(venv / "bin" / "pip"), "install", "-q", str(source)], env, tmp)
+    install.pop("stdout"), install.pop("stderr")
+    install["load_before"] = load_before
+    label = "with" if kernel_cache else "without"
+    print(
+        f"pip install ({label} the kernel cache): wall {install['wall_s']:6.2f} s  "
+        f"user {install['user_s']:6.2f} s  load {load_before} -> {install['load']}"
+    )
+    runs = []
+    for i in range(repeat):
+        run = run_process(paper_command(tmp / f"run{i}.png", [], venv), env, tmp)
+        run["kind"] = "cold" if "compiled the kernels" in str(run.pop("stderr")) else "warm"
+        run.pop("stdout")
+        runs.append(run)
+        print(
+            f"run {i + 1} ({run['kind']}): wall {run['wall_s']:6.2f} s  "
+            f"user {run['user_s']:6.2f} s  load {run['load']}"
+        )
+    return {"source": str(source), "kernel_cache": kernel_cache, "install": install, "runs": runs}
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the parts asked for and write ``benchmarks/results/startup.json``."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -222,8 +270,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--paper-args", default="", help="more arguments for cuikslam paper")
     parser.add_argument("--skip-cold", action="store_true", help="no cold run")
     parser.add_argument("--json", type=Path, default=HERE / "results" / "startup.json")
+    parser.add_argument("--fresh-install", action="store_true", help="time a new venv's install")
+    parser.add_argument("--source", type=Path, help="tree to install (default: HEAD's export)")
+    parser.add_argument("--no-kernel-cache", action="store_true", help="build without kernels")
     args = parser.parse_args(argv)
     part = args.part or "all"
+    if args.fresh_install:
+        part = "fresh install " + ("no kernel cache" if args.no_kernel_cache else "kernel cache")
     extra = shlex.split(args.paper_args)
     result: dict = {
         "command": f"cuikslam paper {args.paper_args}".strip(),
@@ -233,6 +286,10 @@ def main(argv: list[str] | None = None) -> int:
     }
     with tempfile.TemporaryDirectory() as name:
         tmp = Path(name)
+        if args.fresh_install:
+            source = args.source.resolve() if args.source else None
+            kernel_cache = not args.no_kernel_cache
+            result["fresh_install"] = fresh_install(source, args.repeat, kernel_cache, tmp)
         if part in ("all", "importtime"):
             result["importtime"] = part_importtime()
         if part in ("all", "whole"):

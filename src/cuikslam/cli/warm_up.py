@@ -1,12 +1,17 @@
 """``cuikslam warm-up``: compile every kernel into numba's on-disk cache, once, after an install.
 
-Without it the first command after ``pip install`` compiles the kernels itself (about a
-hundred; tens of seconds, see the README's timings) and the later ones load them from the
-cache. The kernels are in two parts: the narrowing (the factors' fixpoint, the ``lp``
-level, the witness check's interval operations) and the correspondence search (its
-search, bisection and gating kernels); ``--jobs 2`` compiles them in two processes at
-once. That costs about a third more CPU (both compile the interval core): measured on a
-busy machine it was slower (README, *Developing*), it can only pay on two free cores.
+Without a cache the first command compiles the kernels itself (about a hundred; about
+20 s of CPU, see the README's timings) and the later ones load them from the cache. A
+wheel built from the source tree (``pip install .``) already holds the cache, compiled by
+the build (``build_backend/``) with :func:`warm_part`; this command is for the other
+cases: an editable install, ``NUMBA_CACHE_DIR`` set, a ``site-packages`` the user cannot
+write (numba then caches in the user's folder), or a wheel built on another CPU or with
+another numba (numba ignores such a cache and compiles). The kernels are in two parts:
+the narrowing (the factors' fixpoint, the ``lp`` level, the witness check's interval
+operations) and the correspondence search (its search, bisection and gating kernels);
+``--jobs 2`` compiles them in two processes at once. That costs about a third more CPU
+(both compile the interval core): measured on a busy machine it was slower (README,
+*Developing*), it can only pay on two free cores.
 It also byte-compiles the package's modules (``compileall``) where pip did not (an
 editable install, or ``PYTHONDONTWRITEBYTECODE`` set): importing them from source costs
 about 0.2 s a command.
@@ -159,10 +164,11 @@ def add_warm_up_parser(sub: argparse._SubParsersAction) -> None:
     """The ``warm-up`` command (imports nothing heavy: every command builds it)."""
     p = sub.add_parser(
         "warm-up",
-        help="compile the kernels into numba's cache once (run it after installing)",
+        help="compile the kernels into numba's cache once (after an editable install)",
         description="Compile every compiled kernel into numba's on-disk cache, so that the "
         "first real command after an install does not spend its time compiling. The cache "
-        "is beside the package (or where NUMBA_CACHE_DIR points).",
+        "is beside the package (or where NUMBA_CACHE_DIR points). `pip install .` already "
+        "compiles it into the wheel; an editable install does not.",
     )
     p.add_argument(
         "--jobs",
