@@ -229,12 +229,15 @@ def part_importtime(top: int = 15) -> list[tuple[str, float]]:
 
 def fresh_install(source: Path | None, repeat: int, kernel_cache: bool, tmp: Path) -> dict:
     """A new venv, ``pip install SOURCE`` timed, then ``repeat`` runs of ``cuikslam paper``."""
+    commit = None
     if source is None:  # the committed state, not a half-edited working tree
         source = tmp / "src"
         source.mkdir()
-        archive = subprocess.run(
-            ["git", "-C", str(HERE.parent), "archive", "HEAD"], capture_output=True, check=True
-        )
+        git = ["git", "-C", str(HERE.parent)]
+        revision = [*git, "rev-parse", "--short", "HEAD"]
+        done = subprocess.run(revision, capture_output=True, text=True, check=True)
+        commit = done.stdout.strip()
+        archive = subprocess.run([*git, "archive", commit], capture_output=True, check=True)
         subprocess.run(["tar", "-x", "-C", str(source)], input=archive.stdout, check=True)
     venv = tmp / "venv"
     subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True)
@@ -259,7 +262,12 @@ def fresh_install(source: Path | None, repeat: int, kernel_cache: bool, tmp: Pat
             f"run {i + 1} ({run['kind']}): wall {run['wall_s']:6.2f} s  "
             f"user {run['user_s']:6.2f} s  load {run['load']}"
         )
-    return {"source": str(source), "kernel_cache": kernel_cache, "install": install, "runs": runs}
+    return {
+        "source": commit or str(source),
+        "kernel_cache": kernel_cache,
+        "install": install,
+        "runs": runs,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
