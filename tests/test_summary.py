@@ -9,7 +9,7 @@ import numpy as np
 
 from cuikslam.hypotheses import solve_unknown
 from cuikslam.results.solution import Hypothesis
-from cuikslam.results.summary import summarize
+from cuikslam.results.summary import describe, summarize
 from cuikslam.simulate import simulate_paper
 
 
@@ -63,3 +63,25 @@ def test_the_paper_survivors_are_a_product_of_independent_ambiguities() -> None:
     for i, options in enumerate(c["follows"]):
         assert true_follows[i][0] in options
         assert c["certain"][i] == (len(options) == 1)
+
+
+def test_the_summary_line_says_each_shape_of_ambiguity_once() -> None:
+    """One ambiguous observation, one group of several, several groups: the line names the
+    group sizes only when there are several (never "100 = 100 combinations")."""
+    one = summarize([["A", "A", "B"], ["A", "B", "B"]])
+    assert describe(one, 2) == (
+        "1 of 3 observations are associated for certain; 2 are ambiguous, in one group "
+        "(2 combinations: the 2 survivors)"
+    )
+    lone = summarize([["A", "B"], ["A", "A"]])
+    assert describe(lone, 2) == (
+        "1 of 2 observations are associated for certain; 1 is ambiguous "
+        "(2 combinations: the 2 survivors)"
+    )
+    product = summarize([["A", "A", "B", "C"], ["A", "B", "B", "C"],
+                         ["A", "A", "B", "B"], ["A", "B", "B", "B"]])  # fmt: skip
+    assert describe(product, 4, complete=False) == (
+        "in the survivors found so far (the search is incomplete), 1 of 4 observations are "
+        "associated for certain; 3 are ambiguous, in 2 independent groups (2 x 2 = 4 "
+        "combinations: the 4 survivors)"
+    )

@@ -224,9 +224,13 @@ def describe(summary: CorrespondenceSummary, survivors: int, complete: bool = Tr
         return f"{scope}all {n} observations are associated for certain{outliers}"
     sizes = " x ".join(str(len(f.choices)) for f in summary.factors)
     groups = len(summary.factors)
+    ambiguous = f"{n - certain} {'is' if n - certain == 1 else 'are'} ambiguous"
+    combinations = f"{summary.combinations} combinations: the {survivors} survivors"
+    if groups == 1:
+        how = f" ({combinations})" if n - certain == 1 else f", in one group ({combinations})"
+    else:
+        how = f", in {groups} independent groups ({sizes} = {combinations})"
     return (
-        f"{scope}{certain} of {n} observations are associated for certain; {n - certain} "
-        f"{'is' if n - certain == 1 else 'are'} ambiguous, in {groups} independent "
-        f"group{'' if groups == 1 else 's'} ({sizes} = {summary.combinations} combinations: "
-        f"the {survivors} survivors){outliers}"
+        f"{scope}{certain} of {n} observations are associated for certain; "
+        f"{ambiguous}{how}{outliers}"
     )
