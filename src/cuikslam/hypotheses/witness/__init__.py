@@ -9,9 +9,11 @@ assignment, with a local optimiser, and then verifies that point with the interv
 The stages, one module each:
 
 * :mod:`.model`: :class:`HypothesisModel`, the parametrisation of a hypothesis (an anchor
-  pose, a turn and distance per tree odometry, landmark positions) and its checks (every
-  other measured interval, loop closures, the sensor's negative information), evaluated in
-  floating point for the optimisers;
+  pose, a turn and distance per tree odometry, a ``(dx, dy, dtheta)`` per tree relative
+  pose and per sensor offset, landmark positions) and its checks (every other measured
+  interval, loop closures, the sensor's negative information), evaluated in floating point
+  for the optimisers; :mod:`._kinematics` builds the tree of poses and sensor poses and
+  runs it in floating point and in interval arithmetic;
 * :mod:`.verify`: :func:`verify_witness`, the rigorous decision: interval forward
   kinematics from a parameter point, and a Poincaré–Miranda box around it when loop
   closures make equalities;

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from cuikslam.budget import OutOfTime, expired
+from cuikslam.hypotheses.witness._kinematics import step_from_world
 from cuikslam.hypotheses.witness._numeric import (
     cos_sin,
     finite,
@@ -78,7 +79,8 @@ class Starts:
         clip: bool = True,
     ) -> np.ndarray:
         """Parameters that reproduce a world as nearly as they can (turns and headings mod
-        2 pi near their intervals; with ``clip`` each parameter is clipped to its bounds).
+        2 pi near their intervals; sensor offsets, which the world does not give, at their
+        intervals' centres; with ``clip`` each parameter is clipped to its bounds).
 
         The world need not be consistent: pose values drive the tree's parameters one step
         at a time, so a box centre gives a sensible starting point.
@@ -89,18 +91,11 @@ class Starts:
         for a, k in self.anchors:
             p[k : k + 3] = P[a]
         for st in self.steps:
-            parent, child = P[st.parent], P[st.child]
-            if st.forward:
-                turn = child[2] - parent[2]
-                u = cos_sin(child[2])
-                delta = child[:2] - parent[:2]
-            else:
-                turn = parent[2] - child[2]
-                u = cos_sin(parent[2])
-                delta = parent[:2] - child[:2]
-            centre = midpoint(self.param_lo[st.turn], self.param_hi[st.turn], 0.0)
-            p[st.turn] = float(wrap_near(np.array(turn), np.array(centre)))
-            p[st.distance] = float(delta[0] * u[0] + delta[1] * u[1])
+            k = list(st.params)
+            if st.child >= self.n_poses:  # a sensor's offset: its intervals' centres
+                p[k] = midpoint(self.param_lo[k], self.param_hi[k], 0.0)
+                continue
+            p[k] = step_from_world(st, P[st.parent], P[st.child], self.param_lo, self.param_hi)
         p[self.landmark_param0 :] = L.ravel()
         p = np.where(np.isfinite(p), p, 0.0)
         if clip:
@@ -151,7 +146,7 @@ class Starts:
             p = np.where(ok & np.isfinite(q), q, p)
         # anchors without a prior: the box centre or the origin
         land = _centres(self.landmark_boxes(landmarks_box))
-        P, _ = self.poses(p)
+        P, _ = self.frames(p)
         L = np.full((self.n_landmarks, 2), np.nan)
         for lo_, hi_, j, c in zip(*self._landmark_prior_rows(), strict=True):
             if np.isnan(L[j, c]) and math.isfinite(lo_) and math.isfinite(hi_):
@@ -252,8 +247,8 @@ class Starts:
         for a, k in self.anchors:
             ok[k : k + 3] = known[a]
         for st in self.steps:
-            both = known[st.parent] and known[st.child]
-            ok[st.turn] = ok[st.distance] = both
+            both = st.child < self.n_poses and known[st.parent] and known[st.child]
+            ok[list(st.params)] = both
         return ok
 
     def _obs_mid(self, q: int, kind: str) -> float | None:

@@ -90,7 +90,7 @@ def inner_hull(
     counts only when :func:`verify_witness` accepts it, else the largest step towards it
     from the witness that verifies. Every verified point widens the hull of every
     coordinate, so the result is the hull of proven solutions: inside the exact hull.
-    Returns None when no witness is found. Headings are unwrapped along the odometry tree
+    Returns None when no witness is found. Headings are unwrapped along the kinematic tree
     from the anchor.
 
     SLSQP calls BLAS on tiny matrices: it runs with one BLAS thread

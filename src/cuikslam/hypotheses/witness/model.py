@@ -3,26 +3,35 @@
 A candidate world is given by a parameter vector (:class:`HypothesisModel`):
 
 * the pose of an *anchor* ``(x, y, theta)``: the first prior pose (bounded by its prior
-  box); poses that no odometry chain connects to a prior pose get their own, unbounded
+  box); poses that no motion chain connects to a prior pose get their own, unbounded
   anchor;
-* a ``(turn, distance)`` per *tree* odometry record, bounded by its measured intervals
-  (distance clipped at 0, as the kinematic graph does): odometry records are taken in
-  log order, and each one that links a placed pose to an unplaced one places the latter by
-  forward kinematics (or backward kinematics when only its target is placed);
+* per *tree* motion record, bounded by its measured intervals: ``(turn, distance)`` for an
+  ``odometry`` record (distance clipped at 0, as the kinematic graph does), ``(dx, dy,
+  dtheta)`` for a ``relative_pose`` record. Motion records are taken in log order, and each
+  one that links a placed pose to an unplaced one places the latter by forward kinematics
+  (or backward kinematics when only its target is placed; see :mod:`._kinematics`);
+* ``(dx, dy, dtheta)`` per sensor pose, bounded by the offset's intervals: observations
+  with an ``offset`` are made from the robot pose composed with it, one sensor pose per
+  pose and offset (one scan), as the kinematic graph builds them (a degenerate offset is a
+  fixed parameter);
 * ``(x, y)`` per landmark, free.
 
-Everything else becomes a *check*: the range and bearing of each observation, every prior
-(pose priors, including the anchors' own, and landmark priors), and each *loop-closing*
-odometry record (into an already placed pose): its turn and distance intervals, and the
-*equality* ``cross(p_t - p_s, (cos theta_t, sin theta_t)) = 0`` (the heading of the target
-equals the direction of travel).
+Everything else becomes a *check*: the range and bearing of each observation (from its
+sensor's pose), every prior (pose priors, including the anchors' own, and landmark
+priors), each *loop-closing* odometry record (into an already placed pose): its turn and
+distance intervals, and the *equality* ``cross(p_t - p_s, (cos theta_t, sin theta_t)) = 0``
+(the heading of the target equals the direction of travel), and each loop-closing
+``relative_pose`` record: the pose of its target in the frame of its source must lie in its
+``dx``, ``dy`` and ``dtheta`` intervals (three inequalities, the heading modulo 2 pi; no
+equality).
 
 When the log declares a :class:`~cuikslam.log.records.SensorModel`, its negative
 information is a check too: at every pose the observed landmarks must be exactly those the
 sensor is sure to see. A landmark is *visible* from a pose when it is within
 ``max_range`` and its bearing within ``fov / 2`` of the heading; when ``nearest_margin``
 is set, the robot sees only the visible landmarks within ``nearest_margin`` of the nearest
-visible one. Observed landmarks must be seen, unobserved ones must not.
+visible one. Observed landmarks must be seen, unobserved ones must not. (A log cannot
+combine a sensor record with observation offsets, so the robot's pose is the sensor's.)
 
 The model evaluates all of this in floating point, with Jacobians, for the optimisers of
 :mod:`.find` and :mod:`.hull`, gives them starting points (:mod:`._starts`) and the
@@ -38,14 +47,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cuikslam.graph.variables import length_bounds
-from cuikslam.hypotheses.witness._numeric import (
-    cos_sin,
-    finite,
-    half_width,
-    midpoint,
-    wrap_near,
-)
+from cuikslam.graph.variables import length_bounds, offset_key
+from cuikslam.hypotheses.witness._kinematics import Tree, kinematics, relative_values
+from cuikslam.hypotheses.witness._numeric import finite, half_width, midpoint, wrap_near
 from cuikslam.hypotheses.witness._residuals import Residuals
 from cuikslam.hypotheses.witness._sensor import SENSOR_MARGIN as SENSOR_MARGIN
 from cuikslam.hypotheses.witness._sensor import distance as _distance
@@ -111,15 +115,6 @@ class WitnessPoint:
         return self.landmarks_xy[self.landmark_ids.index(landmark_id)]
 
 
-@dataclass
-class _Step:
-    parent: int
-    child: int
-    turn: int
-    distance: int
-    forward: bool
-
-
 class HypothesisModel(Starts, Residuals):
     """The parametrisation of a hypothesis and its checks (see the module docstring).
 
@@ -127,8 +122,12 @@ class HypothesisModel(Starts, Residuals):
     appearance in the log), so that arrays of a :class:`~cuikslam.results.Hypothesis` of a
     known-correspondence solve line up; mappings by id are accepted everywhere too.
     ``problems`` lists structural contradictions (a landmark of two classes, one landmark
-    twice in a scan), and records the model cannot express (``relative_pose``): a
-    hypothesis with problems never gets a witness.
+    twice in a scan, an empty interval): a hypothesis with problems never gets a witness.
+
+    The optimisers and :mod:`.verify` work on *frames*: the ``n_poses`` robot poses, then
+    one sensor pose per (pose, offset) of the observations with an offset
+    (``sensor_frames``); ``obs_pose`` holds each observation's frame, ``obs_robot`` its
+    robot pose.
     """
 
     def __init__(self, log: Log, assignment: Sequence[str], use_sensor: bool = True) -> None:
@@ -166,112 +165,67 @@ class HypothesisModel(Starts, Residuals):
         first_prior: dict[int, PosePrior] = {}
         pose_priors: list[PosePrior] = []
         landmark_priors: list[LandmarkPrior] = []
-        odometry: list[Odometry] = []
-        obs_pose: list[int] = []
+        motions: list[Odometry | RelativePose] = []
+        obs_robot: list[int] = []
+        obs_offset: list[tuple | None] = []
         obs_landmark: list[int] = []
         obs_range: list[tuple[float, float]] = []
         obs_bearing: list[tuple[float, float]] = []
-        scans: dict[int, set[int]] = {}
+        scans: dict[tuple, set[int]] = {}
         k = 0
         for record in log.records:
             if isinstance(record, PosePrior):
                 add_pose(record.pose)
                 first_prior.setdefault(record.pose, record)
                 pose_priors.append(record)
-            elif isinstance(record, Odometry):
+            elif isinstance(record, (Odometry, RelativePose)):
                 add_pose(record.source)
                 add_pose(record.target)
-                odometry.append(record)
-            elif isinstance(record, RelativePose):
-                # not parametrised yet: no witness, so never a wrong "proven"
-                if not any(p.startswith("relative_pose") for p in self.problems):
-                    self.problems.append("relative_pose records are not modelled by the witness")
+                motions.append(record)
             elif isinstance(record, LandmarkPrior):
                 add_landmark(record.landmark, record.landmark_class)
                 landmark_priors.append(record)
             elif isinstance(record, Observation):
-                if record.offset is not None and "observation offsets" not in self.problems:
-                    self.problems.append("observation offsets")  # not modelled: no witness
                 i = add_pose(record.pose)
                 j = add_landmark(str(assignment[k]), record.landmark_class)
                 k += 1
-                if j in scans.setdefault(i, set()):
+                offset = None if record.offset is None else offset_key(record.offset)
+                if j in scans.setdefault((i, offset), set()):
                     self.problems.append(
                         f"landmark {assignment[k - 1]} observed twice from pose {record.pose}"
                     )
-                scans[i].add(j)
-                obs_pose.append(i)
+                scans[(i, offset)].add(j)
+                obs_robot.append(i)
+                obs_offset.append(offset)
                 obs_landmark.append(j)
                 obs_range.append(_pair(record.range))
                 obs_bearing.append(_pair(record.bearing))
         n = len(self.pose_ids)
         m = len(self.landmark_ids)
 
-        # ---- parameters: anchors, tree odometry, landmarks
-        lo: list[float] = []
-        hi: list[float] = []
-        names: list[str] = []
-
-        def new_param(name: str, bounds: tuple[float, float]) -> int:
-            lo.append(float(bounds[0]))
-            hi.append(float(bounds[1]))
-            names.append(name)
-            return len(lo) - 1
-
-        placed = [False] * n
-        self.anchors: list[tuple[int, int]] = []
-        self.steps: list[_Step] = []
-        used: set[int] = set()
-        candidates = [self._pose_index[p.pose] for p in pose_priors] + list(range(n))
-        for a in candidates:
-            if placed[a]:
-                continue
-            prior = first_prior.get(self.pose_ids[a])
-            box = (
-                [prior.x, prior.y, prior.theta]
-                if prior is not None
-                else [(-math.inf, math.inf)] * 3
-            )
-            first = len(lo)
-            for c, b in zip("xyt", box, strict=True):
-                new_param(f"pose {self.pose_ids[a]} {c}", b)
-            self.anchors.append((a, first))
-            placed[a] = True
-            changed = True
-            while changed:
-                changed = False
-                for e, r in enumerate(odometry):
-                    if e in used:
-                        continue
-                    s, t = self._pose_index[r.source], self._pose_index[r.target]
-                    if placed[s] == placed[t]:
-                        continue
-                    turn = new_param(f"turn {r.source}->{r.target}", r.turn)
-                    dist = new_param(
-                        f"distance {r.source}->{r.target}",
-                        length_bounds(r.distance),
-                    )
-                    if placed[s]:
-                        self.steps.append(_Step(s, t, turn, dist, True))
-                        placed[t] = True
-                    else:
-                        self.steps.append(_Step(t, s, turn, dist, False))
-                        placed[s] = True
-                    used.add(e)
-                    changed = True
-        self.landmark_param0 = len(lo)
+        # ---- parameters: anchors, tree motions, sensor offsets, landmarks
+        tree = Tree()
+        order = [self._pose_index[p.pose] for p in pose_priors] + list(range(n))
+        tree.grow(self.pose_ids, self._pose_index, order, first_prior, motions)
+        tree.add_sensors(self.pose_ids, obs_robot, obs_offset)
+        self.anchors, self.steps, used = tree.anchors, tree.steps, tree.used
+        self.sensor_frames = tree.sensor_frames
+        self.n_frames = n + len(self.sensor_frames)
+        self.landmark_param0 = len(tree.lo)
         for lid in self.landmark_ids:
-            new_param(f"landmark {lid} x", (-math.inf, math.inf))
-            new_param(f"landmark {lid} y", (-math.inf, math.inf))
+            tree.new_param(f"landmark {lid} x", (-math.inf, math.inf))
+            tree.new_param(f"landmark {lid} y", (-math.inf, math.inf))
+        lo, hi, names, obs_pose = tree.lo, tree.hi, tree.names, tree.obs_frame
         self.param_lo = np.array(lo) + 0.0  # -0.0 -> 0.0
         self.param_hi = np.array(hi) + 0.0
         self.param_names = names
         self.n_params = len(lo)
         if np.any(self.param_lo > self.param_hi):
-            self.problems.append("an odometry or prior interval is empty")
+            self.problems.append("a motion, offset or prior interval is empty")
 
         # ---- checks
         self.obs_pose = np.array(obs_pose, dtype=np.int64)
+        self.obs_robot = np.array(obs_robot, dtype=np.int64)
         self.obs_landmark = np.array(obs_landmark, dtype=np.int64)
         obs_range_a = np.array(obs_range, dtype=float).reshape(-1, 2)
         obs_bearing_a = np.array(obs_bearing, dtype=float).reshape(-1, 2)
@@ -288,7 +242,10 @@ class HypothesisModel(Starts, Residuals):
         )
         self.lprior_coord = np.tile(np.arange(2), len(landmark_priors)).astype(np.int64)
         lprior_b = [b for p in landmark_priors for b in (p.x, p.y)]
-        closures = [r for e, r in enumerate(odometry) if e not in used]
+        closures = [r for e, r in enumerate(motions) if e not in used and isinstance(r, Odometry)]
+        loops = [r for e, r in enumerate(motions) if e not in used and isinstance(r, RelativePose)]
+        self.loop_source = np.array([self._pose_index[r.source] for r in loops], dtype=np.int64)
+        self.loop_target = np.array([self._pose_index[r.target] for r in loops], dtype=np.int64)
         self.closure_source = np.array(
             [self._pose_index[r.source] for r in closures], dtype=np.int64
         )
@@ -307,6 +264,9 @@ class HypothesisModel(Starts, Residuals):
             (np.array(closure_turn, dtype=float).reshape(-1, 2), True, "closure turn"),
             (np.array(closure_distance, dtype=float).reshape(-1, 2), False, "closure distance"),
         ]
+        for c, ang in (("dx", False), ("dy", False), ("dtheta", True)):
+            b = np.array([getattr(r, c) for r in loops], dtype=float).reshape(-1, 2)
+            parts.append((b, ang, f"relative {c}"))
         bounds = np.concatenate([p[0] for p in parts]) if parts else np.zeros((0, 2))
         angular = []
         labels: list[str] = []
@@ -327,9 +287,11 @@ class HypothesisModel(Starts, Residuals):
 
         # ---- negative information
         self.sensor = log.sensor if use_sensor else None
+        if self.sensor is not None and self.sensor_frames:  # the reader refuses these logs
+            self.problems.append("observation offsets with a sensor record")
         self.class_priors = log.class_priors
         self.observed = np.zeros((n, m), dtype=bool)
-        self.observed[self.obs_pose, self.obs_landmark] = True
+        self.observed[self.obs_robot, self.obs_landmark] = True
         self._sensor_rows = np.arange(n * m)
         """The (pose, landmark) pairs, flattened, whose sensor violation the optimisers see."""
         self._rows = np.arange(len(obs_pose))
@@ -370,8 +332,9 @@ class HypothesisModel(Starts, Residuals):
         return self._landmark_index[landmark_id]
 
     # ------------------------------------------------------------------ floats
-    def poses(self, p: np.ndarray, jacobian: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
-        """Forward kinematics: poses (n, 3) and, optionally, their Jacobian (n, 3, n_params).
+    def frames(self, p: np.ndarray, jacobian: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+        """Forward kinematics: frames (n_frames, 3), robot poses then sensor poses, and,
+        optionally, their Jacobian (n_frames, 3, n_params).
 
         The last result is memoised (callers must not modify the arrays).
         """
@@ -379,46 +342,17 @@ class HypothesisModel(Starts, Residuals):
         memo = self._memo
         if memo is not None and memo[0] == key and (memo[2] is not None or not jacobian):
             return memo[1], (memo[2] if jacobian else None)
-        P, J = self._kinematics(p, jacobian)
+        with np.errstate(all="ignore"):  # overflow is clipped (see _numeric.finite)
+            P, J = kinematics(self.n_frames, self.n_params, self.anchors, self.steps, p, jacobian)
         self._memo = (key, P, J)
         return P, J
 
-    @np.errstate(all="ignore")  # overflow is clipped (see _numeric.finite)
-    def _kinematics(self, p: np.ndarray, jacobian: bool) -> tuple[np.ndarray, np.ndarray | None]:
+    def poses(self, p: np.ndarray, jacobian: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+        """Forward kinematics: the robot poses (n, 3) and, optionally, their Jacobian
+        (n, 3, n_params) (views of :meth:`frames`: callers must not modify them)."""
+        P, J = self.frames(p, jacobian)
         n = self.n_poses
-        P = np.empty((n, 3))
-        J = np.zeros((n, 3, self.n_params)) if jacobian else None
-        for a, k in self.anchors:
-            P[a] = p[k : k + 3]
-            if J is not None:
-                J[a, 0, k] = J[a, 1, k + 1] = J[a, 2, k + 2] = 1.0
-        for st in self.steps:
-            x, y, t = P[st.parent]
-            d = p[st.distance]
-            if st.forward:
-                th = t + p[st.turn]
-                c, s = cos_sin(th)
-                P[st.child] = (x + d * c, y + d * s, th)
-                if J is not None:
-                    jt = J[st.parent, 2].copy()
-                    jt[st.turn] += 1.0
-                    J[st.child, 2] = jt
-                    J[st.child, 0] = J[st.parent, 0] - d * s * jt
-                    J[st.child, 1] = J[st.parent, 1] + d * c * jt
-                    J[st.child, 0, st.distance] += c
-                    J[st.child, 1, st.distance] += s
-            else:
-                c, s = cos_sin(t)
-                P[st.child] = (x - d * c, y - d * s, t - p[st.turn])
-                if J is not None:
-                    jt = J[st.parent, 2]
-                    J[st.child, 2] = jt
-                    J[st.child, 2, st.turn] -= 1.0
-                    J[st.child, 0] = J[st.parent, 0] + d * s * jt
-                    J[st.child, 1] = J[st.parent, 1] - d * c * jt
-                    J[st.child, 0, st.distance] -= c
-                    J[st.child, 1, st.distance] -= s
-        return P, J
+        return P[:n], (None if J is None else J[:n])
 
     def landmarks(self, p: np.ndarray) -> np.ndarray:
         """Landmark positions (m, 2)."""
@@ -434,7 +368,7 @@ class HypothesisModel(Starts, Residuals):
     ) -> tuple[np.ndarray, np.ndarray | None]:
         """Every check's implied value (angles as the representative nearest the interval's
         centre) and, optionally, the Jacobian (n_checks, n_params)."""
-        P, JP = self.poses(p, jacobian)
+        P, JP = self.frames(p, jacobian)
         L = self.landmarks(p)
         values: list[np.ndarray] = []
         jacs: list[np.ndarray] = []
@@ -452,6 +386,8 @@ class HypothesisModel(Starts, Residuals):
         ct, st = np.cos(P[t_, 2]), np.sin(P[t_, 2])
         values.append(P[t_, 2] - P[s_, 2])
         values.append(ddx * ct + ddy * st)
+        R, JR = relative_values(P, JP, self.loop_source, self.loop_target)
+        values += [R[:, 0], R[:, 1], R[:, 2]]
         v = np.concatenate(values)
         ang = self.check_angular
         v[ang] = wrap_near(v[ang], self.check_mid[ang])
@@ -480,6 +416,8 @@ class HypothesisModel(Starts, Residuals):
         jacs.append(
             ct[:, None] * jdx + st[:, None] * jdy + (-ddx * st + ddy * ct)[:, None] * JP[t_, 2]
         )
+        assert JR is not None
+        jacs += [JR[:, 0], JR[:, 1], JR[:, 2]]
         return v, finite(np.concatenate(jacs).reshape(-1, self.n_params), nan=0.0)
 
     def point(self, p: np.ndarray, residual: float = 0.0) -> WitnessPoint:

@@ -7,6 +7,14 @@ coordinates, inclusion modulo 2 pi for angles (the shift ``2 pi k`` is itself an
 Bearings come from :func:`cuikslam.interval.angle_of` over a window wider than 2 pi, which
 encloses every representative of the true angle in the window, hence at least one.
 
+The frames are the robot poses and the sensor poses (a robot pose composed with an
+observation's offset, whose parameters must lie in the offset's intervals like every other
+parameter); ranges and bearings are measured from the sensor's frame. A loop-closing
+``relative_pose`` record is three inequalities: the pose of its target in the frame of its
+source, enclosed from the interval frames (:func:`._kinematics.relative_enclosure`), must lie
+inside its ``dx`` and ``dy`` intervals and, modulo 2 pi, its ``dtheta`` interval; a point
+strictly inside meets them with no equality to bracket.
+
 Loop-closing odometry is an equality, which a single point cannot satisfy exactly in
 floating point. It is verified with the Poincaré–Miranda theorem: one parameter per
 closure (its *pivot*) is widened to a small interval; if every inequality check holds over
@@ -30,6 +38,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from cuikslam import interval as ia
+from cuikslam.hypotheses.witness._kinematics import interval_kinematics, relative_enclosure
 from cuikslam.hypotheses.witness.model import HypothesisModel, WitnessPoint
 from cuikslam.interval.angles import angles_inside, out_of_view_arc
 from cuikslam.log.records import Log
@@ -47,25 +56,10 @@ def _inside(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
 
 
 def _interval_world(model: HypothesisModel, box: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Poses (n, 3, 2) and landmarks (m, 2, 2) enclosing the world of every parameter in the
-    parameter box ``box`` (n_params, 2), by outward-rounded forward kinematics."""
-    P = np.full((model.n_poses, 3, 2), np.nan)
-    for a, k in model.anchors:
-        P[a] = box[k : k + 3]
-    for st in model.steps:
-        parent = P[st.parent]
-        d = box[st.distance]
-        if st.forward:
-            th = ia.add(parent[2], box[st.turn])
-            c, s = ia.cos(th), ia.sin(th)
-            P[st.child, 0] = ia.add(parent[0], ia.mul(d, c))
-            P[st.child, 1] = ia.add(parent[1], ia.mul(d, s))
-            P[st.child, 2] = th
-        else:
-            c, s = ia.cos(parent[2]), ia.sin(parent[2])
-            P[st.child, 0] = ia.sub(parent[0], ia.mul(d, c))
-            P[st.child, 1] = ia.sub(parent[1], ia.mul(d, s))
-            P[st.child, 2] = ia.sub(parent[2], box[st.turn])
+    """Frames (n_frames, 3, 2: robot poses, then sensor poses) and landmarks (m, 2, 2)
+    enclosing the world of every parameter in the parameter box ``box`` (n_params, 2), by
+    outward-rounded forward kinematics."""
+    P = interval_kinematics(model.n_frames, model.anchors, model.steps, box)
     L = box[model.landmark_param0 :].reshape(-1, 2, 2)
     return P, L
 
@@ -118,6 +112,9 @@ def _checks_hold(model: HypothesisModel, box: np.ndarray) -> bool:
         ddy = np.where(same, 0.0, ia.sub(P[t_, 1], P[s_, 1]))
         dist = ia.add(ia.mul(ddx, ia.cos(P[t_, 2])), ia.mul(ddy, ia.sin(P[t_, 2])))
         pieces += [turn, dist]
+    if len(model.loop_source):
+        R = relative_enclosure(P, model.loop_source, model.loop_target)
+        pieces += [R[:, 0], R[:, 1], R[:, 2]]
     values = np.concatenate([q.reshape(-1, 2) for q in pieces]) if pieces else np.zeros((0, 2))
     if values.shape[0] != model.n_checks:
         raise AssertionError("check layout mismatch")
@@ -126,7 +123,7 @@ def _checks_hold(model: HypothesisModel, box: np.ndarray) -> bool:
     ok_ang = angles_inside(values[ang], lo[ang], hi[ang])
     if not (np.all(ok_plain) and np.all(ok_ang)):
         return False
-    return _sensor_holds(model, P, L) and _class_priors_hold(model, L)
+    return _sensor_holds(model, P[: model.n_poses], L) and _class_priors_hold(model, L)
 
 
 def _class_priors_hold(model: HypothesisModel, L: np.ndarray) -> bool:
