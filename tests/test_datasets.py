@@ -146,3 +146,26 @@ def test_real_whole_run_solved_boxes_contain_the_truth():
     (hyp,) = solution.hypotheses
     report = check_truth(hyp, truth.pose_ids, truth.poses_xyt)
     assert report.ok, report.misses[:3]
+
+
+def test_synthetic_surveyed_map_is_matched_by_the_search(tmp_path):
+    """``map_bound``: every post of the file's map becomes a landmark record holding its
+    position; with the ids dropped the search, matching readings to those posts, keeps the
+    true association."""
+    from cuikslam import SolveOptions, solve
+    from cuikslam.results.association import rank_of
+
+    path = tmp_path / "small.mat"
+    _synthetic(path)
+    log, truth = read_lost_in_the_woods(
+        path, unknown=True, keyframe=10, every_observation=False, map_bound=0.05
+    )
+    posts = scipy.io.loadmat(path)["l"]
+    priors = log.landmark_priors
+    assert [p.landmark for p in priors] == [f"P{j}" for j in range(len(posts))]
+    for prior, (x, y) in zip(priors, posts, strict=True):
+        assert _inside(x, prior.x) and _inside(y, prior.y)
+        assert prior.x[1] - prior.x[0] < 0.1 + 1e-12
+    solution = solve(log, SolveOptions(consistency="hull", time_budget=60))
+    assert solution.complete
+    assert rank_of(solution.hypotheses, truth.assignment) is not None

@@ -305,3 +305,23 @@ def test_real_default_bounds_leave_only_the_documented_outliers() -> None:
     assert sum(f.ranges for f in found.values()) == 5
     assert sum(f.bearings for f in found.values()) == 9
     assert sum(f.moves for f in found.values()) == 2
+
+
+def test_the_surveyed_map_becomes_landmark_records_that_the_search_matches(tmp_path) -> None:
+    """``map_bound``: each surveyed landmark's box holds its position with the bound's
+    half-width; with the ids dropped the search matches every sighting to a surveyed
+    landmark, and the true association survives."""
+    from cuikslam import SolveOptions, solve
+    from cuikslam.results.association import rank_of
+
+    log, truth, _ = read_mrclam(write_dataset(tmp_path / "d"), 1, unknown=True, map_bound=0.02)
+    priors = {p.landmark: p for p in log.landmark_priors}
+    assert set(priors) == {f"L{s}" for s in LANDMARKS}
+    for s, (x, y) in LANDMARKS.items():
+        box = priors[f"L{s}"]
+        assert _inside(x, box.x) and _inside(y, box.y)
+        assert box.x[1] - box.x[0] == pytest.approx(0.04, rel=1e-9)
+    solution = solve(log, SolveOptions(consistency="hull", time_budget=60))
+    assert solution.complete
+    assert rank_of(solution.hypotheses, truth.assignment) is not None
+    assert all(a in priors for h in solution.hypotheses for a in h.assignment)

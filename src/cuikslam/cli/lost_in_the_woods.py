@@ -7,7 +7,7 @@ import argparse
 import sys
 
 from cuikslam.cli._common import CommandError, check_output_path, int_at_least, write_output
-from cuikslam.cli.mrclam import _positive, add_outlier_options, declare_outliers
+from cuikslam.cli.mrclam import _positive, add_map_option, add_outlier_options, declare_outliers
 
 __all__ = ["add_litw_calibrate_parser", "add_litw_import_parser"]
 
@@ -74,6 +74,7 @@ def add_litw_import_parser(datasets: argparse._SubParsersAction) -> None:
         type=_positive,
         help="two posts are at least this far apart [m] (a class record; default none)",
     )
+    add_map_option(p, "post")
     add_outlier_options(p)
     p.add_argument("-q", "--quiet", action="store_true")
     p.set_defaults(func=_cmd_import)
@@ -106,6 +107,7 @@ def _cmd_import(args: argparse.Namespace) -> int:
         bounds=bounds,
         posts_at_most=None if args.no_post_count else posts,
         post_separation=args.post_separation,
+        map_bound=args.map,
     )
     declare_outliers(log, args)
     write_log_and_truth(log, truth, out, truth_out, quiet=args.quiet)

@@ -67,6 +67,18 @@ def _whole(text: str) -> int:
     return value
 
 
+def add_map_option(p: argparse.ArgumentParser, landmark: str) -> None:
+    """``--map BOUND``: write the dataset's surveyed landmark positions into the log."""
+    p.add_argument(
+        "--map",
+        type=_positive,
+        metavar="BOUND",
+        help=f"write the dataset's surveyed map: each {landmark}'s surveyed position +/- "
+        "BOUND [m] as a landmark record (localization against a known map; with unknown "
+        f"correspondence the search matches each reading to a surveyed {landmark})",
+    )
+
+
 def add_outlier_options(p: argparse.ArgumentParser) -> None:
     """``--outliers Q`` and ``--outliers-window P W``: ``outliers`` records in the log."""
     p.add_argument(
@@ -132,6 +144,7 @@ def add_mrclam_parser(datasets: argparse._SubParsersAction) -> None:
         "each its own landmark",
     )
     p.add_argument("--unknown", action="store_true", help="leave out landmark ids")
+    add_map_option(p, "landmark")
     add_outlier_options(p)
     add_bound_options(p)
     p.add_argument(
@@ -187,6 +200,7 @@ def _cmd_import_mrclam(args: argparse.Namespace) -> int:
             unknown=args.unknown,
             bounds=bounds,
             truth_gap=args.truth_gap,
+            map_bound=args.map,
         )
     except ValueError as err:
         if type(err) is not ValueError:  # an InputFileError names its file: main prints it

@@ -43,6 +43,7 @@ from cuikslam.errors import InputFileError
 from cuikslam.log.records import (
     Bounds,
     ClassPrior,
+    LandmarkPrior,
     Log,
     Observation,
     PosePrior,
@@ -82,6 +83,7 @@ def read_lost_in_the_woods(
     bounds: LitwBounds | None = None,
     posts_at_most: int | Literal["file"] | None = None,
     post_separation: float | None = None,
+    map_bound: float | None = None,
 ) -> tuple[Log, GroundTruth]:
     """Import samples ``start .. start + steps`` of ``dataset2.mat`` (default: to the end).
 
@@ -113,6 +115,11 @@ def read_lost_in_the_woods(
         A ``class`` record for the posts: at most this many (``"file"``: as many as the
         file's map has, 17), and two at least this far apart [m]; priors a user of the
         arena knows, which the correspondence search uses to refute hypotheses.
+    map_bound : float, optional
+        Write the file's surveyed map (the posts' Vicon positions, ``l``) as landmark
+        records, each post's position ± ``map_bound`` [m], and no post beyond the map's
+        (unless ``posts_at_most`` says otherwise): localization against a known map. With
+        ``unknown`` the search then matches each reading to a surveyed post.
 
     Returns
     -------
@@ -178,10 +185,15 @@ def read_lost_in_the_woods(
 
     keys = sorted({*range(start, end, keyframe), first_truth, end})
     records: list[Record] = []
-    if posts_at_most == "file":
-        posts_at_most = len(posts)
+    if posts_at_most == "file" or (map_bound is not None and posts_at_most is None):
+        posts_at_most = len(posts)  # a surveyed map: no post beyond it
     if posts_at_most is not None or post_separation is not None:
         records.append(ClassPrior("post", at_most=posts_at_most, min_separation=post_separation))
+    if map_bound is not None:
+        records.extend(
+            LandmarkPrior(f"P{j}", "post", _widen(px, map_bound), _widen(py, map_bound))
+            for j, (px, py) in enumerate(posts.tolist())
+        )
     if first_truth > start:
         # before the first Vicon pose the robot is only known to be near the posts
         lo, hi = posts.min(axis=0) - ARENA_MARGIN, posts.max(axis=0) + ARENA_MARGIN

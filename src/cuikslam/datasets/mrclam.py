@@ -68,7 +68,7 @@ from cuikslam.datasets.mrclam_files import (
 )
 from cuikslam.errors import InputFileError
 from cuikslam.interval._arith import add, mul
-from cuikslam.log.records import Log, Observation, PosePrior, Record
+from cuikslam.log.records import ClassPrior, LandmarkPrior, Log, Observation, PosePrior, Record
 from cuikslam.simulate.truth import GroundTruth
 
 __all__ = ["MotionModel", "MrclamBounds", "MrclamImport", "read_mrclam"]
@@ -158,6 +158,7 @@ def read_mrclam(
     bounds: MrclamBounds | None = None,
     truth_gap: float = 0.25,
     motion: MotionModel | None = None,
+    map_bound: float | None = None,
 ) -> tuple[Log, GroundTruth, MrclamImport]:
     """Import robot ``robot`` of the MRCLAM dataset in ``folder`` (see the module docstring).
 
@@ -184,6 +185,11 @@ def read_mrclam(
     motion : MotionModel, optional
         Turns the commands between two poses into records; default
         :func:`cuikslam.datasets.mrclam_motion.relative_pose_motion`.
+    map_bound : float, optional
+        Write the surveyed map (``Landmark_Groundtruth.dat``) as landmark records, each
+        landmark's position ± ``map_bound`` [m], and a class record: no landmark beyond
+        the map's (localization against a known map). With ``unknown`` the search then
+        matches each sighting to a surveyed landmark.
 
     Returns
     -------
@@ -229,6 +235,12 @@ def read_mrclam(
             _around(th, bounds.prior_theta),
         )
     ]
+    if map_bound is not None:  # every landmark is surveyed: none beyond the map
+        records.append(ClassPrior("landmark", at_most=len(tables.landmarks)))
+        records.extend(
+            LandmarkPrior(f"L{s}", "landmark", _around(xy[0], map_bound), _around(xy[1], map_bound))
+            for s, xy in tables.landmarks.items()
+        )
     pose_of_time = {float(t): i for i, t in enumerate(times)}
     obs_by_pose = _observations(
         tables, np.flatnonzero(inside), pose_of_time, bounds, robots, unknown, report
