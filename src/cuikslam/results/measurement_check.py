@@ -10,7 +10,11 @@ interval (the motion since its keyframe, say) has no true sensor pose in the tru
 and is counted apart as unchecked. This is how ``cuikslam calibrate`` reports what falls
 outside calibrated bounds, and how the outliers of a real log are found.
 
-Compared in floating point (a calibration figure, not a proof); angles modulo 2π.
+Compared in floating point (a calibration figure, not a proof); angles modulo 2π. A value
+that misses its interval by no more than the rounding error of that comparison (a truth
+exactly on a bound, say) is not counted outside: an observation is then counted unchecked,
+a move inside. Counting it outside would make ``solve --truth`` take a sound log for one
+that breaks its outliers declaration, and say "no guarantee applies" where it holds.
 """
 
 from __future__ import annotations
@@ -58,8 +62,17 @@ class Outside:
         )
 
 
+_ROUNDING = 64 * 2.0**-52
+"""Relative error allowed to a float evaluation of a measured value from the truth's floats."""
+
+
 def _excess(value: float, box: tuple[float, float]) -> float:
     return max(box[0] - value, value - box[1], 0.0)
+
+
+def _beyond(excess: float, error: float) -> bool:
+    """True when ``excess`` is larger than what rounding (``error``) can explain."""
+    return excess > error
 
 
 def _where(kind: str, index: int, record: Any) -> str:
@@ -89,10 +102,13 @@ def check_log(log: Log, truth: GroundTruth) -> Outside:
             if p is not None and lid is not None:
                 out.observations_checked += 1
                 q = mark[lid]
-                bad = False
+                bad = borderline = False
+                scale = 1.0 + abs(q[0]) + abs(q[1]) + abs(p[0]) + abs(p[1])
+                rng = math.hypot(q[0] - p[0], q[1] - p[1])
                 if record.range is not None:
-                    rng = math.hypot(q[0] - p[0], q[1] - p[1])
-                    if (e := _excess(rng, record.range)) > 0:
+                    e = _excess(rng, record.range)
+                    borderline |= 0 < e <= _ROUNDING * scale
+                    if _beyond(e, _ROUNDING * scale):
                         out.ranges += 1
                         bad = True
                         out.details.append(
@@ -101,7 +117,10 @@ def check_log(log: Log, truth: GroundTruth) -> Outside:
                         )
                 if record.bearing is not None:
                     bearing = math.atan2(q[1] - p[1], q[0] - p[0]) - p[2]
-                    if (e := angle_excess(bearing, *record.bearing)) > 0:
+                    e = angle_excess(bearing, *record.bearing)
+                    error = _ROUNDING * (scale / max(rng, 1e-300) + 1.0 + abs(p[2]))
+                    borderline |= 0 < e <= error
+                    if _beyond(e, error):
                         out.bearings += 1
                         bad = True
                         out.details.append(
@@ -110,6 +129,10 @@ def check_log(log: Log, truth: GroundTruth) -> Outside:
                         )
                 if bad:
                     out.outside_observations.append(index)
+                elif borderline:  # on a bound, as far as floats can tell
+                    out.observations_checked -= 1
+                    out.observations_unchecked += 1
+                    out.unchecked_observations.append(index)
             index += 1
         elif isinstance(record, RelativePose | Odometry):
             a, b = pose.get(record.source), pose.get(record.target)
@@ -138,21 +161,23 @@ def _sensor_pose(pose: list[float], offset: tuple) -> list[float] | None:
 
 def _move_misses(record: RelativePose | Odometry, a: list[float], b: list[float]) -> list[str]:
     """The components of a move that miss the true poses ``a`` -> ``b``."""
+    scale = 1.0 + abs(a[0]) + abs(a[1]) + abs(b[0]) + abs(b[1])
+    turned = _ROUNDING * (1.0 + abs(a[2]) + abs(b[2]))
     if isinstance(record, Odometry):
         dist = math.hypot(b[0] - a[0], b[1] - a[1])
         values = [
-            ("turn", angle_excess(b[2] - a[2], *record.turn)),
-            ("distance", _excess(dist, record.distance)),
+            ("turn", angle_excess(b[2] - a[2], *record.turn), turned),
+            ("distance", _excess(dist, record.distance), _ROUNDING * scale),
         ]
     else:
         c, s = math.cos(a[2]), math.sin(a[2])
         dx, dy = b[0] - a[0], b[1] - a[1]
         values = [
-            ("dx", _excess(c * dx + s * dy, record.dx)),
-            ("dy", _excess(-s * dx + c * dy, record.dy)),
-            ("dtheta", angle_excess(b[2] - a[2], *record.dtheta)),
+            ("dx", _excess(c * dx + s * dy, record.dx), _ROUNDING * scale),
+            ("dy", _excess(-s * dx + c * dy, record.dy), _ROUNDING * scale),
+            ("dtheta", angle_excess(b[2] - a[2], *record.dtheta), turned),
         ]
-    return [f"{name} by {e:.3g}" for name, e in values if e > 0]
+    return [f"{name} by {e:.3g}" for name, e, error in values if _beyond(e, error)]
 
 
 def outside_to_json(found: Outside) -> dict[str, Any]:
