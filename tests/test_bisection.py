@@ -123,3 +123,19 @@ def test_a_deadline_in_the_past_stops_before_any_work(log: Log) -> None:
     (b,) = _bisections(log, [[]])
     assert refute_by_bisection([b], deadline=0.0, max_parts=100) == [False]
     assert b.narrowed_parts == 0 and len(b.parts) == 1
+
+
+def test_a_bisection_whose_waiting_parts_outgrow_the_limit_gives_up(log: Log) -> None:
+    """Memory stays bounded: beyond ``max_pending`` waiting parts a bisection stops for good,
+    its hypothesis not refuted and its deepest part kept for the witness; with room it runs
+    as before."""
+    (tight,) = _bisections(log, [[]])
+    tight.run(None, max_parts=200, max_pending=2)
+    assert tight.gave_up and tight.exhausted and not tight.refuted
+    assert tight.parts == [] and tight.best() is not None
+    assert tight.narrowed_parts < 200
+    (roomy,) = _bisections(log, [[]])
+    roomy.run(None, max_parts=tight.narrowed_parts, max_pending=10_000)
+    assert not roomy.gave_up
+    assert roomy.narrowed_parts == tight.narrowed_parts
+    assert len(roomy.parts) > 2

@@ -30,6 +30,13 @@ HEADING_SCALE = 10.0
 error moves what a pose sees 10 m away by about this much per radian)."""
 APPLICATIONS_PER_PART = 200_000
 """Work budget of one part's narrowing (stopping early is sound, only weaker)."""
+PENDING_SHARE = 8
+"""A bisection keeps at most ``1 / PENDING_SHARE`` of its part budget waiting (at least
+``MIN_PENDING``); beyond, it gives up: the hypothesis is not refuted (sound), its deepest
+part is kept for the witness search. Each waiting part is a copy of every bound: the 100
+survivors of a 200-pose log (Lost in the Woods with a surveyed map), 327 parts each,
+held 1.7 GB before this limit."""
+MIN_PENDING = 16
 
 
 @dataclass
@@ -60,6 +67,8 @@ class Bisection:
     """The latest of them, kept for the witness search (one, so memory stays bounded)."""
     refuted_parts: int = 0
     narrowed_parts: int = 0
+    gave_up: bool = False
+    """Too many parts waited at once (see ``PENDING_SHARE``): the hypothesis stands."""
 
     def __post_init__(self) -> None:
         self.parts = [(self.lo.copy(), self.hi.copy())]
@@ -78,9 +87,9 @@ class Bisection:
         """True when no part is left to split (refuted, or only unsplittable parts)."""
         return not self.parts
 
-    def run(self, deadline: float | None, max_parts: int) -> None:
+    def run(self, deadline: float | None, max_parts: int, max_pending: int | None = None) -> None:
         """Split parts and narrow the halves, up to ``max_parts`` narrowed halves (fewer at
-        ``deadline``)."""
+        ``deadline``); give up when more than ``max_pending`` parts wait."""
         stop = self.narrowed_parts + max_parts
         while self.parts and self.narrowed_parts < stop:
             if deadline is not None and time.perf_counter() >= deadline:
@@ -103,6 +112,16 @@ class Bisection:
             # depth first, the half with the smaller box on top: parts stay few
             halves.sort(key=lambda p: -self._size(*p))
             self.parts.extend(halves)
+            if max_pending is not None and len(self.parts) > max_pending:
+                self.give_up()
+                return
+
+    def give_up(self) -> None:
+        """Stop for good, the hypothesis not refuted; keep only the deepest part."""
+        self.last_unsplit = self.best()
+        self.unsplit += len(self.parts)
+        self.parts = []
+        self.gave_up = True
 
     def best(self) -> tuple[np.ndarray, np.ndarray] | None:
         """The most recently narrowed part (the deepest), or None when all are refuted."""
@@ -156,16 +175,18 @@ def refute_by_bisection(
     the others, and the bisections may be split among workers with the same result
     (:func:`allotment` gives the share). Each round gives every open bisection its quota
     (8 parts, then twice as many each round), so that the cheap refutations (a part or two)
-    come first when the ``deadline`` cuts the rounds short.
+    come first when the ``deadline`` cuts the rounds short. A bisection whose waiting parts
+    outgrow ``PENDING_SHARE`` of its budget gives up (memory stays bounded).
     """
     most = allotment(len(bisections), max_parts, max_total_parts)
+    pending = max(MIN_PENDING, most // PENDING_SHARE)
     quota = FIRST_ROUND_PARTS
     while deadline is None or time.perf_counter() < deadline:
         open_ = [b for b in bisections if not b.exhausted and b.narrowed_parts < most]
         if not open_:
             break
         for b in open_:
-            b.run(deadline, min(quota, most - b.narrowed_parts))
+            b.run(deadline, min(quota, most - b.narrowed_parts), pending)
         quota *= 2
     return [b.refuted for b in bisections]
 
