@@ -69,6 +69,8 @@ AIM_FRACTION = 0.1
 """The optimiser aims this fraction of each interval's half-width inside it."""
 MIN_MARGIN = 1e-9
 """...but at least this much (unless the interval is narrower)."""
+FIXED_WIDTH = 1e-12
+"""A parameter whose interval is narrower than this (relative) is not optimised."""
 
 
 def aim_margin(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
@@ -322,8 +324,15 @@ class HypothesisModel(Starts, Residuals):
 
     @property
     def free(self) -> np.ndarray:
-        """Parameters with room to move (not fixed by a degenerate interval)."""
-        return self.param_lo < self.param_hi
+        """Parameters with room to move: wider than ``FIXED_WIDTH`` times their magnitude
+        (at least 1). The others, a degenerate interval or one a few ulps wide (the Lost in
+        the Woods laser mount, written with outward rounding), stay where the start puts
+        them, inside their interval: fewer columns for the optimisers, and nothing lost."""
+        lo, hi = self.param_lo, self.param_hi
+        with np.errstate(over="ignore", invalid="ignore"):
+            scale = np.maximum(1.0, np.maximum(np.abs(lo), np.abs(hi)))
+            wide = (hi - lo) > FIXED_WIDTH * scale
+        return np.where(np.isfinite(scale), wide, lo < hi)  # unbounded: free
 
     def pose_index(self, pose_id: int) -> int:
         return self._pose_index[pose_id]
