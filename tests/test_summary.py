@@ -85,3 +85,12 @@ def test_the_summary_line_says_each_shape_of_ambiguity_once() -> None:
         "associated for certain; 3 are ambiguous, in 2 independent groups (2 x 2 = 4 "
         "combinations: the 4 survivors)"
     )
+
+
+def test_a_summary_of_some_survivors_says_so() -> None:
+    """When the tally holds only the first survivors (a cap), "certain" speaks of those."""
+    some = summarize([["A", "A", "B"], ["A", "B", "B"]])
+    line = describe(some, 5, summarised=2)
+    assert line.startswith("in the first 2 of the 5 survivors (the rest counted only), ")
+    assert line.endswith("(2 combinations: the 2 survivors)")
+    assert describe(some, 2, summarised=2) == describe(some, 2)

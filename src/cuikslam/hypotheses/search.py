@@ -405,12 +405,14 @@ def finish_search(
         )
     correspondence = None
     if hypotheses or stats.survivors:  # survivors beyond the report still count
-        summary = summarize(tally.kept(), set(problem.named), tally.poses())
-        messages.append(describe(summary, stats.survivors, complete))
+        kept = tally.kept()
+        summary = summarize(kept, set(problem.named), tally.poses())
+        messages.append(describe(summary, stats.survivors, complete, len(kept)))
         correspondence = {
             **summary_to_json(summary),
             "reported": len(hypotheses),
             "survivors": stats.survivors,
+            "summarised": len(kept),
             "complete": complete,
         }
     if not hypotheses and stats.survivors:

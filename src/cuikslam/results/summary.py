@@ -205,15 +205,25 @@ def summary_holds(document: dict, assignment: list[str], named: set[str]) -> boo
     )
 
 
-def describe(summary: CorrespondenceSummary, survivors: int, complete: bool = True) -> str:
+def describe(
+    summary: CorrespondenceSummary,
+    survivors: int,
+    complete: bool = True,
+    summarised: int | None = None,
+) -> str:
     """One line a user reads first: certain associations, independent ambiguities.
 
     When the search was cut short (``complete`` False) the line speaks of the survivors
-    found, since unexplored subtrees may hold other associations.
+    found, since unexplored subtrees may hold other associations; when the summary covers
+    only ``summarised`` of the ``survivors`` (a tally has a cap), it says so, since the
+    others may associate differently.
     """
     n = len(summary.certain)
     certain = sum(summary.certain)
     scope = "" if complete else "in the survivors found so far (the search is incomplete), "
+    if summarised is not None and summarised < survivors:
+        scope += f"in the first {summarised} of the {survivors} survivors (the rest counted only), "
+        survivors = summarised
     every, some = summary.outliers
     outliers = (
         f" ({len(every)} taken as outliers by every survivor, {len(some)} by some)"
