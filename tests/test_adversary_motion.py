@@ -38,3 +38,22 @@ def test_a_truth_on_a_bound_keeps_the_guarantee_of_a_declaration() -> None:
     assert done.returncode == 0, done.stdout + done.stderr
     assert "no guarantee applies" not in done.stdout
     assert "the true correspondence survived" in done.stdout
+
+
+def test_an_unreported_true_hypothesis_with_an_unchecked_outlier_is_not_a_failure() -> None:
+    """The only observation is an outlier made from an uncertain sensor offset (the truth
+    file cannot check it), and the true hypothesis (taking it as an outlier) is the second
+    of two survivors, not reported with ``--max-hypotheses 1``. The truth check looked for
+    the truth's own landmark in the correspondence summary, not for the hypothesis taking
+    the unchecked observation as an outlier, and said "the true correspondence is not among
+    the 2 survivors" (exit 1); a 6-pose world at ``lp-split`` (1,335 survivors) did the same
+    with the default 100 reported."""
+    log = FOUND / "unchecked-outlier-unreported.jsonl"
+    truth = FOUND / "unchecked-outlier-unreported.truth.json"
+    run = [sys.executable, "-m", "cuikslam.cli.main", "solve", str(log), "--truth", str(truth)]
+    done = subprocess.run([*run, "-q", "--max-hypotheses", "1"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stdout + done.stderr
+    assert "not among the 1 reported of 2 survivors" in done.stdout
+    everything = subprocess.run([*run, "-q"], capture_output=True, text=True)
+    assert everything.returncode == 0, everything.stdout + everything.stderr
+    assert "the true correspondence survived (hypothesis 2 of 2)" in everything.stdout

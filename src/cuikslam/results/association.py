@@ -186,10 +186,10 @@ def truth_verdict(
         )
     marked = [OUTLIER if i in set(outside) else a for i, a in enumerate(truth.assignment)]
     if not solution.hypotheses:  # survivors remain, none reported
-        return _truth_not_reported(solution, marked, named)
+        return _truth_not_reported(solution, marked, named, unchecked)
     ranks = true_ranks(solution.hypotheses, truth.assignment, named, outside, unchecked)
     if not ranks:
-        return _truth_not_reported(solution, marked, named)
+        return _truth_not_reported(solution, marked, named, unchecked)
     for rank in ranks:  # an unchecked observation may be an outlier: the first that holds
         h = solution.hypotheses[rank - 1]
         report = _check(h, truth)
@@ -239,16 +239,45 @@ def _check(h: Hypothesis, truth: GroundTruth):
     return check_truth(h, truth.pose_ids, truth.exact_poses(), landmark_xy)
 
 
+MAX_UNCHECKED_SETS = 4096
+"""Sets of unchecked observations tried as outliers against the correspondence summary."""
+
+
+def _summary_holds_truth(
+    document: dict, assignment: list[str], named: Collection[str], unchecked: Collection[int]
+) -> bool | None:
+    """Whether the summary ``document`` holds the true hypothesis: ``assignment`` with any
+    set of the ``unchecked`` observations taken as outliers too (each may be one); None when
+    it cannot tell (the summary does not cover every survivor, or too many sets)."""
+    maybe = sorted(i for i in set(unchecked) if assignment[i] != OUTLIER)
+    if 2 ** len(maybe) > MAX_UNCHECKED_SETS:
+        return True if summary_holds(document, assignment, set(named)) else None
+    for mask in range(2 ** len(maybe)):
+        row = list(assignment)
+        for bit, i in enumerate(maybe):
+            if mask >> bit & 1:
+                row[i] = OUTLIER
+        answer = summary_holds(document, row, set(named))
+        if answer is None:
+            return None
+        if answer:
+            return True
+    return False
+
+
 def _truth_not_reported(
-    solution: Solution, assignment: list[str], named: Collection[str]
+    solution: Solution,
+    assignment: list[str],
+    named: Collection[str],
+    unchecked: Collection[int] = (),
 ) -> TruthVerdict:
     """The verdict when no reported hypothesis is the true one (``assignment``: the truth,
-    its outliers marked)."""
+    its outliers marked; ``unchecked``: observations that may be outliers too)."""
     survivors = int(solution.statistics.get("survivors", len(solution.hypotheses)))
     held = (
         None
         if solution.correspondence is None
-        else summary_holds(solution.correspondence, assignment, set(named))
+        else _summary_holds_truth(solution.correspondence, assignment, named, unchecked)
     )
     if survivors > len(solution.hypotheses) and held is False and solution.complete:
         return TruthVerdict(
