@@ -241,3 +241,22 @@ def test_the_logs_named_landmarks_come_from_the_result_or_log(
     assert main([*args, "-q"]) == 1  # --log names it again
     assert main([*args[:-1], str(tmp_path / "nope.jsonl")]) == 2
     assert "nope.jsonl" in capsys.readouterr().err
+
+
+def test_a_wrong_best_ranked_hypothesis_is_named_as_such(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    """When the true correspondence is not reported, evaluate judges the best-ranked one and
+    says it is not the true one, so that its boxes missing the truth read as expected, not
+    as a broken guarantee (an adversarial tester's log, reported with --max-hypotheses 1)."""
+    data = Path(__file__).parent / "data" / "adversary"
+    log = data / "unchecked-outlier-unreported.jsonl"
+    result = tmp_path / "r.json"
+    assert main(["solve", str(log), "--max-hypotheses", "1", "--json", str(result), "-q"]) == 0
+    capsys.readouterr()
+    truth = data / "unchecked-outlier-unreported.truth.json"
+    assert main(["evaluate", str(result), "--truth", str(truth)]) == 0
+    out = capsys.readouterr().out
+    assert "the best-ranked, not the true one" in " ".join(out.split())
+    assert "miss the truth (of a hypothesis that is not the true one)" in " ".join(out.split())
+    assert "the guarantee did not hold" not in out

@@ -58,7 +58,11 @@ def print_evaluation(ev: Evaluation, console: Console) -> None:
     head.add_column(style="bold")
     head.add_column()
     which = f"{ev.evaluated_rank} of {ev.reported} reported"
-    which += " (the true correspondence)" if ev.evaluated_is_true else ""
+    wrong = not ev.evaluated_is_true and ev.correct_associations is not None
+    if ev.evaluated_is_true:
+        which += " (the true correspondence)"
+    elif wrong:
+        which += " (the best-ranked, not the true one: its boxes need not hold the truth)"
     head.add_row("hypothesis evaluated", which)
     head.add_row("poses with truth inside their box", _pct(ev.poses_inside, ev.poses_with_truth))
     if ev.poses_without_truth:
@@ -123,7 +127,8 @@ def print_evaluation(ev: Evaluation, console: Console) -> None:
             )
         console.print(over)
     if ev.misses:
-        console.print(f"{len(ev.misses)} bounds miss the truth:")
+        whose = " (of a hypothesis that is not the true one)" if wrong else ""
+        console.print(f"{len(ev.misses)} bounds miss the truth{whose}:")
         for miss in ev.misses[:20]:
             console.print(f"  {miss}")
         if len(ev.misses) > 20:
