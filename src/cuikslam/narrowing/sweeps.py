@@ -156,16 +156,21 @@ def _bounded(
 def _signature(lo: np.ndarray, hi: np.ndarray, variables: np.ndarray) -> float:
     """Mean of the logarithms of the finite, non-zero widths: it drops by about g when
     every variable shrinks by the fraction g."""
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         logs = np.log(hi[variables] - lo[variables])
     logs = logs[np.isfinite(logs)]
     return float(np.mean(logs)) if logs.size else 0.0
 
 
+WIDTH_CAP = 1e300
+"""Each finite width counts at most this much in a round's total (a measure of progress
+only), so that widths near the largest double do not overflow the sum."""
+
+
 def _total_width(lo: np.ndarray, hi: np.ndarray, variables: np.ndarray) -> float:
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore", over="ignore"):
         widths = hi[variables] - lo[variables]
-    return float(np.sum(widths[np.isfinite(widths)]))
+    return float(np.sum(np.minimum(widths[np.isfinite(widths)], WIDTH_CAP)))
 
 
 class _Propagator:
@@ -359,7 +364,7 @@ def _visit(
     )  # fmt: skip
     if tightened.is_empty:
         return False
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore", over="ignore"):  # widths past the largest double: inf
         slack = STALE_GAIN * (old_hi - old_lo)
         moved_lo = (lo[window.targets] - old_lo > slack) | (
             np.isinf(slack) & (lo[window.targets] > old_lo)

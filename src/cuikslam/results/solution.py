@@ -66,14 +66,16 @@ class Hypothesis:
 
     @property
     def box_size(self) -> float:
-        """Sum of all widths: a ranking key (smaller = more informative)."""
-        widths = np.concatenate(
-            [
-                (self.poses[..., 1] - self.poses[..., 0]).ravel(),
-                (self.landmarks[..., 1] - self.landmarks[..., 0]).ravel(),
-            ]
-        )
-        return float(widths.sum())
+        """Sum of all widths: a ranking key (smaller = more informative; inf when a box
+        is unbounded or the sum passes the largest double)."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            widths = np.concatenate(
+                [
+                    (self.poses[..., 1] - self.poses[..., 0]).ravel(),
+                    (self.landmarks[..., 1] - self.landmarks[..., 0]).ravel(),
+                ]
+            )
+            return float(widths.sum())
 
     @property
     def rank_key(self) -> tuple[bool, int, int, float]:
