@@ -52,6 +52,11 @@ __all__ = [
 LP_TIME_LIMIT = 0.5
 """Seconds one LP may take at most when the caller has a deadline (a typical one takes a
 few milliseconds)."""
+LP_SAFETY_TIME = 10.0
+"""Seconds one LP may take at most without a deadline: a safety net only. HiGHS's primal
+simplex once ran for more than 5 minutes on a 335 x 116 LP of a property test (phase 1,
+past its iteration limit) after the compiled simplex had failed; a bound from the duals it
+stops with is still safe (:func:`safe_bound`), only weaker."""
 LP_ITERATIONS_PER_SIZE = 10
 """Simplex iterations one LP may take, per row and column (typical: about one third)."""
 LP_MIN_ITERATIONS = 1000
@@ -454,10 +459,11 @@ def _sequence(
 def _run(solver: highspy.Highs, deadline: float | None, stats: LpStatistics) -> object:
     """Run one LP within its limits (HiGHS's time limit counts the instance's total time).
 
-    Without a deadline there is no time limit, only the iteration limit: a bound then does
-    not depend on how busy the machine is, and a run gives the same boxes every time."""
-    if deadline is None:
-        solver.setOptionValue("time_limit", highspy.kHighsInf)
+    Without a deadline the iteration limit decides, with ``LP_SAFETY_TIME`` as a safety net
+    far above any LP that finishes: a bound then does not depend on how busy the machine is,
+    and a run gives the same boxes every time."""
+    if deadline is None:  # the iteration limit decides; the time limit is a safety net
+        solver.setOptionValue("time_limit", solver.getRunTime() + LP_SAFETY_TIME)
     else:
         allowed = min(LP_TIME_LIMIT, max(remaining(deadline), 1e-3))
         solver.setOptionValue("time_limit", solver.getRunTime() + allowed)
