@@ -35,6 +35,7 @@ __all__ = [
     "evaluation_note",
     "hypothesis_outlier_messages",
     "hypothesis_outliers",
+    "log_without_observations",
     "outlier_messages",
     "outlier_scope",
     "outliers_to_json",
@@ -230,6 +231,21 @@ def check_declaration(log: Log, outside: list[int], moves_outside: int = 0) -> t
     return holds, f"declared outliers: {'; '.join(parts)}: {verdict}"
 
 
+def log_without_observations(log: Log, drop: set[int]) -> Log:
+    """``log`` without the observations numbered ``drop`` (in log order) and without its
+    ``outliers`` declarations: what a hypothesis that takes those as outliers must meet."""
+    records = []
+    k = -1
+    for record in log.records:
+        if isinstance(record, Observation):
+            k += 1
+            if k in drop:
+                continue
+        if not isinstance(record, OutlierBound):
+            records.append(record)
+    return Log(records=records, path=log.path)
+
+
 def certify_without_outliers(
     log: Log, solution: Solution, certify: Callable[..., Any], deadline: float | None
 ) -> None:
@@ -246,16 +262,7 @@ def certify_without_outliers(
         return
     best = solution.hypotheses[0]
     proven = {p["observation"] for p in solution.outliers["proven"]} | set(best.outliers)
-    records = []
-    k = -1
-    for record in log.records:
-        if isinstance(record, Observation):
-            k += 1
-            if k in proven:
-                continue
-        if not isinstance(record, OutlierBound):
-            records.append(record)
-    reduced = Log(records=records, path=log.path)
+    reduced = log_without_observations(log, proven)
     trial = replace(best, assignment=[a for i, a in enumerate(best.assignment) if i not in proven])
     named = set(trial.assignment) | {p.landmark for p in reduced.landmark_priors}
     if not set(best.landmark_ids) <= named:

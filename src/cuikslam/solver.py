@@ -17,7 +17,7 @@ from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import STRENGTHEN_SHARE, deadline_after, portion
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.hypotheses.search import solve_unknown
-from cuikslam.hypotheses.witness import certify
+from cuikslam.hypotheses.witness import certify, fit_hypotheses
 from cuikslam.log.records import Log
 from cuikslam.narrowing.consistency import StrengthenReport, resolve_level, strengthen
 from cuikslam.narrowing.outliers import RelaxedReport, narrow_with_outliers
@@ -38,13 +38,19 @@ __all__ = ["budget_message", "hypothesis_from_graph", "solve"]
 ProgressCallback = Callable[[int, int], None]
 """Called with (done, total) as a long solve advances."""
 
-CERTIFY_MAX_POSES = 120
-"""No witness search beyond this many poses (a dense least-squares problem: its time grows
-quickly with the log). Measured on 2026-11-26: a dense 100-pose world's survivor proven in
-1.2 s within the default budget, a 97-pose MRCLAM window's true hypothesis in 0.8 s; the
-whole 1,262-pose Lost in the Woods run made 3 evaluations in 219 s. Within the cap the
-time budget (or, without one, the witness' work limit) bounds the search."""
+CERTIFY_MAX_POSES = 250
+"""No witness search beyond this many poses (a least-squares problem with a dense Jacobian:
+its time and memory grow with the square of the log). Measured on 2026-11-26: a dense
+100-pose world's survivor proven in 1.2 s within the default budget, a 97-pose MRCLAM
+window's true hypothesis in 0.8 s, the best-ranked survivor of a 201-pose Lost in the Woods
+window in 2.6 s (with ``lsmr``, :func:`~cuikslam.hypotheses.witness.find.tr_solver_for`);
+a 401-pose window took 20 s and 1 GB, and the whole 1,262-pose run made 3 evaluations in
+219 s (before ``lsmr``). Within the cap the time budget (or, without one, the witness'
+work limit) bounds the search."""
 SEARCH_SHARE = 0.8
+FIT_SHARE = 0.5
+"""Share of the time left after the search that the least-squares fit of the reported
+hypotheses (their ranking) may use; the witness search gets the rest."""
 """Fraction of the time budget the correspondence search (with its survivors' stronger
 level) may use; the witness search gets the rest, and whatever the search did not need."""
 
@@ -165,7 +171,9 @@ def solve(
     correspondence the fixpoint of the factors always runs to the end (it takes
     milliseconds); the stronger level may use ``STRENGTHEN_SHARE`` of the time left, and
     the witness search the rest. With unknown correspondence the search (and its
-    survivors' stronger level) gets ``SEARCH_SHARE`` of the budget. A stage that runs out
+    survivors' stronger level) gets ``SEARCH_SHARE`` of the budget, then the least-squares
+    fit that ranks its survivors (:func:`~cuikslam.hypotheses.witness.fit_hypotheses`)
+    ``FIT_SHARE`` of the time left. A stage that runs out
     stops soundly and says so: the level actually reached (e.g. ``"lp (budget)"``, see
     :mod:`cuikslam.narrowing.consistency`) in ``Solution.consistency`` and each
     hypothesis' ``consistency``, a hypothesis left ``not refuted`` rather than proven, an
@@ -195,6 +203,8 @@ def solve(
         )
     else:
         solution = _solve_known(log, consistency, options.rtol, progress, deadline, options.threads)
+    if unknown and len(solution.hypotheses) > 1:
+        fit_hypotheses(log, solution, portion(deadline, FIT_SHARE))
     certify_limit = options.certify_limit
     if n_poses > CERTIFY_MAX_POSES and certify_limit != 0 and solution.hypotheses:
         certify_limit = 0  # the witness search is a dense least-squares problem

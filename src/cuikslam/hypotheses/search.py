@@ -247,9 +247,10 @@ def _strengthen_survivors(
         short = [n.level for n in kept if n.level != level]  # a deadline cut them short
         return kept, short[0] if short else level
     messages.append(
-        f"{len(survivors)} hypotheses survived: the '{level}' level was applied to the "
-        f"best-ranked one only (to all when at most {limit} survive; raise "
-        "--strengthen-limit); the others' boxes are at least hull-consistent"
+        f"{len(survivors)} hypotheses survived: the '{level}' level was applied to one of "
+        "them only, the first by fewest landmarks, then smallest boxes (to all when at most "
+        f"{limit} survive; raise --strengthen-limit); the others' boxes are at least "
+        "hull-consistent"
     )
     for _ in range(BEST_ATTEMPTS):
         if not survivors:

@@ -60,6 +60,8 @@ def _hypothesis_to_json(h: Hypothesis, rank: int) -> dict[str, Any]:
         "rank": rank,
         "n_landmarks": h.n_landmarks,
     }
+    if math.isfinite(h.fit):
+        doc["fit"] = h.fit
     if h.witness is not None:
         doc["witness"] = {k: np.asarray(v).tolist() for k, v in h.witness.items()}
     return doc
@@ -131,6 +133,14 @@ def _read_bounds(value: Any, where: str) -> tuple[float, float]:
     return lo, hi
 
 
+def _read_fit(value: Any, where: str) -> float:
+    if value is None:
+        return math.nan
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not value >= 0:
+        raise ValueError(f"{where} fit is {value!r}, not a number >= 0")
+    return float(value)
+
+
 def _hypothesis_from_json(doc: dict[str, Any], where: str) -> Hypothesis:
     poses = doc["poses"]
     pose_ids = [int(p) for p in poses]
@@ -156,6 +166,7 @@ def _hypothesis_from_json(doc: dict[str, Any], where: str) -> Hypothesis:
         status=str(doc.get("status", "")),
         consistency=str(doc.get("consistency", "")),
         witness=None if witness is None else {k: np.asarray(v) for k, v in witness.items()},
+        fit=_read_fit(doc.get("fit"), where),
     )
 
 

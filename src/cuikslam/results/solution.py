@@ -54,6 +54,12 @@ class Hypothesis:
     """A verified solution point (``poses_xyt``, ``landmarks_xy``) when ``status`` is PROVEN."""
     consistency: str = ""
     """The consistency level these boxes reach (``hull``, ``lp``, ``lp-split``)."""
+    fit: float = math.nan
+    """Least-squares cost of the world that best explains its readings: the sum of the
+    squared distances of every measured value from its interval's centre, in half-widths
+    (the objective of a least-squares back end with those as standard deviations), as far
+    as :func:`~cuikslam.hypotheses.witness.fit_hypotheses` got within its budget; NaN when
+    not computed. It ranks hypotheses that explain the log equally parsimoniously."""
 
     @property
     def n_landmarks(self) -> int:
@@ -78,14 +84,18 @@ class Hypothesis:
             return float(widths.sum())
 
     @property
-    def rank_key(self) -> tuple[bool, int, int, float]:
+    def rank_key(self) -> tuple[bool, int, int, float, float]:
         """How hypotheses are ranked, best first: proven consistent before undecided (an
         undecided one may still be impossible), then fewest outliers (an outlier explains
-        nothing), then fewest landmarks (a new landmark
-        explains any observation, so the fewest is the most constrained explanation), then
+        nothing), then fewest landmarks (a new landmark explains any observation, so the
+        fewest is the most constrained explanation), then the smallest least-squares
+        ``fit`` (the readings nearest their intervals' centres; not computed: last), then
         smallest boxes. It is an order, not a probability: every reported hypothesis is
         possible or undecided, and the guarantee holds whichever is true."""
-        return (self.status != PROVEN, len(self.outliers), self.n_landmarks, self.box_size)
+        # fits within 1e-6 tie: a hypothesis whose readings its landmarks absorb costs 0 up
+        # to the optimiser's rounding, and rounding must not order it
+        fit = round(self.fit, 6) if math.isfinite(self.fit) else math.inf
+        return (self.status != PROVEN, len(self.outliers), self.n_landmarks, fit, self.box_size)
 
     def pose(self, pose_id: int) -> np.ndarray:
         """The (3, 2) box of one pose."""

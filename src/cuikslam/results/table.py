@@ -92,12 +92,13 @@ def comparison_table(
 def summary_table(
     solution: Solution, title: str = "Surviving hypotheses", limit: int | None = None
 ) -> Table:
-    """One line per hypothesis: rank, landmarks, status, level, total box size, assignment.
+    """One line per hypothesis: rank, landmarks, status, level, total box size,
+    least-squares fit, assignment.
 
     With ``limit``, only the first ``limit`` hypotheses, and each assignment cut after
     ``limit`` observations."""
     table = Table(title=title, title_justify="left")
-    columns = ("rank", "landmarks", "status", "level", "Σ widths")
+    columns = ("rank", "landmarks", "status", "level", "Σ widths", "fit")
     for name in (*columns, "assignment (observation → landmark)"):
         table.add_column(name)
     for rank, h in enumerate(solution.hypotheses[:limit], start=1):
@@ -107,6 +108,7 @@ def summary_table(
             h.status,
             h.consistency or "—",
             f"{h.box_size:.2f}",
+            f"{h.fit:.2f}" if math.isfinite(h.fit) else "—",
             _assignment_text(h.assignment, limit),
         )
     return table

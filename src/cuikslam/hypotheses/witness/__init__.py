@@ -20,6 +20,8 @@ The stages, one module each:
 * :mod:`.find`: :func:`find_witness`, the local search for a point that verifies;
 * :mod:`.certification`: :func:`certify`, which runs it on every hypothesis of a
   :class:`~cuikslam.results.Solution`, sharing one budget;
+* :mod:`.fit`: :func:`fit_hypotheses`, the least-squares cost of each hypothesis' best
+  world, which ranks equally parsimonious hypotheses;
 * :mod:`.hull`: :func:`inner_hull`, the same machinery used to measure the exact solution
   set from inside (every point it keeps is verified), to judge how tight the narrowed
   boxes are.
@@ -27,6 +29,7 @@ The stages, one module each:
 
 from cuikslam.hypotheses.witness.certification import certify
 from cuikslam.hypotheses.witness.find import find_witness
+from cuikslam.hypotheses.witness.fit import fit_hypotheses
 from cuikslam.hypotheses.witness.hull import InnerHull, inner_hull
 from cuikslam.hypotheses.witness.model import (
     AIM_FRACTION,
@@ -44,6 +47,7 @@ __all__ = [
     "WitnessPoint",
     "certify",
     "find_witness",
+    "fit_hypotheses",
     "inner_hull",
     "verify_witness",
 ]

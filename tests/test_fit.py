@@ -1,0 +1,127 @@
+"""The least-squares fit that ranks equally parsimonious hypotheses
+(:mod:`cuikslam.hypotheses.witness.fit`): it follows the readings, is written and read back,
+and a spent budget leaves the order to box size and says so."""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+
+import numpy as np
+import pytest
+
+from cuikslam.errors import InputFileError
+from cuikslam.hypotheses.witness import HypothesisModel, fit_hypotheses
+from cuikslam.hypotheses.witness.fit import fit_cost
+from cuikslam.log.reader import parse_log_lines
+from cuikslam.outliers import log_without_observations
+from cuikslam.results.io import read_result_file, write_result_file
+from cuikslam.results.solution import OUTLIER, PROVEN, Hypothesis
+from cuikslam.solver import solve
+
+# two surveyed doors 0.3 m apart, 2 m ahead of a robot at the origin; one door reading
+# whose intervals hold both
+MAP = [
+    '{"type": "prior", "pose": 0, "x": [0, 0], "y": [0, 0], "theta": [0, 0]}',
+    '{"type": "landmark", "id": "A", "class": "door", "x": [1.99, 2.01], "y": [-0.01, 0.01]}',
+    '{"type": "landmark", "id": "B", "class": "door", "x": [1.99, 2.01], "y": [0.29, 0.31]}',
+    '{"type": "class", "class": "door", "at_most": 2}',
+]
+
+
+def _reading(bearing_centre: float) -> str:
+    lo, hi = bearing_centre - 0.2, bearing_centre + 0.2
+    return (
+        '{"type": "observation", "pose": 0, "class": "door", "range": [1.9, 2.2], '
+        f'"bearing": [{lo!r}, {hi!r}]}}'
+    )
+
+
+@pytest.mark.parametrize(("centre", "best"), [(0.0, "A"), (math.atan2(0.3, 2.0), "B")])
+def test_the_door_the_reading_points_at_ranks_first(centre: float, best: str) -> None:
+    log = parse_log_lines([*MAP, _reading(centre)])
+    solution = solve(log, certify_limit=0, time_budget=None)
+    assert sorted(h.assignment[0] for h in solution.hypotheses) == ["A", "B"]
+    first, second = solution.hypotheses
+    assert first.assignment == [best]
+    assert first.fit < second.fit
+    assert solution.statistics["fitted_hypotheses"] == 2
+
+
+def test_fit_is_the_least_squares_cost_in_half_widths() -> None:
+    """From the reading's centre (range 2.05 m, bearing 0), door A (range 2, bearing 0)
+    is 0.05 m off in range (half-width 0.15 m); A may move ``d`` along x within its prior
+    (half-width 0.01 m), so the cost is the minimum over d of ((0.05 - d) / 0.15)^2 +
+    (d / 0.01)^2 = 0.05^2 / (0.15^2 + 0.01^2)."""
+    log = parse_log_lines([*MAP, _reading(0.0)])
+    solution = solve(log, certify_limit=0, time_budget=None)
+    [h] = [h for h in solution.hypotheses if h.assignment == ["A"]]
+    cost, params = fit_cost(HypothesisModel(log, h.assignment), h)
+    assert params is not None
+    assert cost == pytest.approx(0.05**2 / (0.15**2 + 0.01**2), rel=1e-6)
+
+
+def test_a_spent_budget_leaves_the_order_to_box_size_and_says_so() -> None:
+    log = parse_log_lines([*MAP, _reading(0.0)])
+    solution = solve(log, certify_limit=0, time_budget=None)
+    for h in solution.hypotheses:
+        h.fit = math.nan
+    solution.messages.clear()
+    assert fit_hypotheses(log, solution, deadline=time.perf_counter() - 1.0) == 0
+    assert all(math.isnan(h.fit) for h in solution.hypotheses)
+    assert solution.messages == [
+        "the least-squares fit that ranks equally parsimonious hypotheses was computed for 0 "
+        "of 2 (time budget); the others rank after them, by box size"
+    ]
+
+
+def _hypothesis(status: str = "", fit: float = math.nan, size: float = 1.0) -> Hypothesis:
+    return Hypothesis(
+        assignment=["A"],
+        pose_ids=[0],
+        poses=np.array([[[0.0, size], [0.0, 0.0], [0.0, 0.0]]]),
+        landmark_ids=["A"],
+        landmark_classes=["door"],
+        landmarks=np.zeros((1, 2, 2)),
+        status=status or "not refuted",
+        fit=fit,
+    )
+
+
+def test_rank_key_puts_proof_before_fit_and_fit_before_box_size() -> None:
+    proven_poor_fit = _hypothesis(PROVEN, fit=9.0, size=5.0)
+    good_fit = _hypothesis(fit=1.0, size=3.0)
+    unfitted_small = _hypothesis(size=0.5)
+    poor_fit_small = _hypothesis(fit=2.0, size=1.0)
+    shuffled = [unfitted_small, poor_fit_small, good_fit, proven_poor_fit]
+    ranked = sorted(shuffled, key=lambda h: h.rank_key)
+    assert ranked == [proven_poor_fit, good_fit, poor_fit_small, unfitted_small]
+
+
+def test_fit_is_written_and_read_back(tmp_path) -> None:
+    log = parse_log_lines([*MAP, _reading(0.0)])
+    solution = solve(log, certify_limit=0, time_budget=None)
+    path = tmp_path / "result.json"
+    write_result_file(solution, path)
+    again = read_result_file(path)
+    assert [h.fit for h in again.hypotheses] == [h.fit for h in solution.hypotheses]
+    doc = json.loads(path.read_text())
+    doc["hypotheses"][1]["fit"] = "small"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(InputFileError, match="hypothesis 2 fit is 'small'"):
+        read_result_file(path)
+
+
+def test_an_outlier_is_fitted_as_if_its_reading_were_not_in_the_log() -> None:
+    lines = [*MAP, _reading(0.0), _reading(0.0).replace('"pose": 0', '"pose": 0, "landmark": "B"')]
+    log = parse_log_lines(lines)
+    solution = solve(log, certify_limit=0, time_budget=None)
+    h = solution.hypotheses[0]
+    taken = Hypothesis(**{**h.__dict__, "assignment": [OUTLIER, "B"], "fit": math.nan})
+    solution.hypotheses = [taken]
+    fit_hypotheses(log, solution)
+    reduced = log_without_observations(log, {0})
+    alone, _ = fit_cost(HypothesisModel(reduced, ["B"]), taken)
+    assert math.isfinite(taken.fit)
+    assert taken.fit == alone
