@@ -20,6 +20,7 @@ from cuikslam.hypotheses.witness import (
     inner_hull,
     verify_witness,
 )
+from cuikslam.log.reader import parse_log_lines
 from cuikslam.log.records import (
     LandmarkPrior,
     Log,
@@ -564,3 +565,22 @@ def test_a_log_beyond_the_witness_size_says_why_it_stays_not_refuted() -> None:
     assert [h.status for h in solution.hypotheses] == ["not refuted"]
     said = f"no witness search beyond {CERTIFY_MAX_POSES} poses"
     assert any(said in m for m in solution.messages)
+
+
+def test_a_point_prior_on_a_later_pose_anchors_the_witness() -> None:
+    """A wide prior on pose 0 and a point prior on pose 2 (a surveyed spot the robot
+    reached): the witness is anchored at the point prior, so the log is proven consistent
+    (anchored at pose 0, the point prior was an equality no enclosure verifies: the search
+    spent its whole work limit and left the log undecided)."""
+    lines = [
+        '{"type": "prior", "pose": 0, "x": [-5, 5], "y": [-5, 5], "theta": [-3.2, 3.2]}',
+        '{"type": "odometry", "from": 0, "to": 1, "turn": [-0.01, 0.01], "distance": [0.99, 1.01]}',
+        '{"type": "odometry", "from": 1, "to": 2, "turn": [0.49, 0.51], "distance": [0.99, 1.01]}',
+        '{"type": "prior", "pose": 2, "x": [2, 2], "y": [1, 1], "theta": [0.5, 0.5]}',
+        '{"type": "observation", "pose": 2, "class": "post", "range": [1.9, 2.1], '
+        '"bearing": [-0.1, 0.1], "landmark": "A"}',
+    ]
+    [h] = solve(parse_log_lines(lines), time_budget=30).hypotheses
+    assert h.status == PROVEN
+    assert h.witness is not None
+    assert h.witness["poses_xyt"][h.pose_ids.index(2)].tolist() == [2.0, 1.0, 0.5]

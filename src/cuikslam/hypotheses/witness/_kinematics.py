@@ -86,17 +86,17 @@ class Tree:
         pose_ids: Sequence[int],
         pose_index: dict[int, int],
         order: Sequence[int],
-        first_prior: dict[int, PosePrior],
+        anchor_prior: dict[int, PosePrior],
         motions: Sequence[Odometry | RelativePose],
     ) -> None:
-        """Place every robot pose: anchors taken in ``order`` (bounded by their first prior,
+        """Place every robot pose: anchors taken in ``order`` (bounded by ``anchor_prior``,
         if any), each followed by the motions, in log order, that link a placed pose to an
         unplaced one, until none is left."""
         placed = [False] * len(pose_ids)
         for a in order:
             if placed[a]:
                 continue
-            prior = first_prior.get(pose_ids[a])
+            prior = anchor_prior.get(pose_ids[a])
             box = [(-math.inf, math.inf)] * 3 if prior is None else [prior.x, prior.y, prior.theta]
             first = len(self.lo)
             for c, b in zip("xyt", box, strict=True):

@@ -2,9 +2,10 @@
 
 A candidate world is given by a parameter vector (:class:`HypothesisModel`):
 
-* the pose of an *anchor* ``(x, y, theta)``: the first prior pose (bounded by its prior
-  box); poses that no motion chain connects to a prior pose get their own, unbounded
-  anchor;
+* the pose of an *anchor* ``(x, y, theta)``: the pose with the narrowest prior, bounded by
+  that prior's box (the other priors are checks: a point prior anchors exactly, where a
+  check could never be verified); poses that no motion chain connects to a prior pose get
+  their own, unbounded anchor;
 * per *tree* motion record, bounded by its measured intervals: ``(turn, distance)`` for an
   ``odometry`` record (distance clipped at 0, as the kinematic graph does), ``(dx, dy,
   dtheta)`` for a ``relative_pose`` record. Motion records are taken in log order, and each
@@ -88,6 +89,14 @@ def _typical_half_width(lo: np.ndarray, hi: np.ndarray) -> float:
     return float(np.median(half)) if half.size else 1.0
 
 
+def _width(prior: PosePrior | None) -> float:
+    """The summed widths of a pose prior's x, y and heading intervals (inf: none)."""
+    if prior is None:
+        return math.inf
+    with np.errstate(over="ignore", invalid="ignore"):
+        return float(sum(hi - lo for lo, hi in (prior.x, prior.y, prior.theta)))
+
+
 def _pair(bounds: tuple[float, float] | None) -> tuple[float, float]:
     if bounds is None:
         return (math.nan, math.nan)
@@ -164,7 +173,7 @@ class HypothesisModel(Starts, Residuals):
                     self.landmark_classes[self._landmark_index[landmark]] = cls
             return self._landmark_index[landmark]
 
-        first_prior: dict[int, PosePrior] = {}
+        anchor_prior: dict[int, PosePrior] = {}
         pose_priors: list[PosePrior] = []
         landmark_priors: list[LandmarkPrior] = []
         motions: list[Odometry | RelativePose] = []
@@ -178,7 +187,8 @@ class HypothesisModel(Starts, Residuals):
         for record in log.records:
             if isinstance(record, PosePrior):
                 add_pose(record.pose)
-                first_prior.setdefault(record.pose, record)
+                if _width(record) < _width(anchor_prior.get(record.pose)):
+                    anchor_prior[record.pose] = record
                 pose_priors.append(record)
             elif isinstance(record, (Odometry, RelativePose)):
                 add_pose(record.source)
@@ -207,8 +217,11 @@ class HypothesisModel(Starts, Residuals):
 
         # ---- parameters: anchors, tree motions, sensor offsets, landmarks
         tree = Tree()
-        order = [self._pose_index[p.pose] for p in pose_priors] + list(range(n))
-        tree.grow(self.pose_ids, self._pose_index, order, first_prior, motions)
+        # anchored at the narrowest prior: a point prior anchors exactly, where as a check
+        # it would be an equality no interval enclosure can verify
+        narrowest = sorted(pose_priors, key=_width)
+        order = [self._pose_index[p.pose] for p in narrowest] + list(range(n))
+        tree.grow(self.pose_ids, self._pose_index, order, anchor_prior, motions)
         tree.add_sensors(self.pose_ids, obs_robot, obs_offset)
         self.anchors, self.steps, used = tree.anchors, tree.steps, tree.used
         self.sensor_frames = tree.sensor_frames
