@@ -1,0 +1,55 @@
+"""How ambiguous is one reading when every other reading is known?
+
+For each chosen reading of an unknown-correspondence log with a truth file (``cuikslam
+import ... -o LOG`` writes ``LOG.truth.json``), every other reading gets its true landmark
+and the search decides that one alone: which landmarks can it be at the level given?
+When a reading keeps several choices even then, no search order can decide it from the
+rest of the log; its choices multiply with the other such readings' in a whole search.
+
+    cuikslam import lost-in-the-woods dataset2.mat --bounds woods.bounds.json \\
+        --steps 2000 --keyframe-observations --post-separation 1.0 -o w2000.jsonl
+    python benchmarks/one_reading_ambiguity.py w2000.jsonl --readings 489 519 526 645
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("log", type=Path)
+    parser.add_argument("--truth", type=Path, help="default: LOG with .truth.json")
+    parser.add_argument("--readings", type=int, nargs="+", required=True,
+                        help="observation numbers (0-based, log order)")  # fmt: skip
+    parser.add_argument("--level", default="hull", choices=("hull", "lp", "lp-split"))
+    args = parser.parse_args(argv)
+
+    from cuikslam.hypotheses import solve_unknown
+    from cuikslam.log.reader import parse_log_lines
+
+    lines = [ln for ln in args.log.read_text().splitlines() if ln.strip() and ln[0] != "#"]
+    truth_path = args.truth or args.log.with_suffix(".truth.json")
+    truth = json.loads(truth_path.read_text())["assignment"]
+    observations = [i for i, ln in enumerate(lines) if json.loads(ln)["type"] == "observation"]
+    print(f"{'reading':>8} {'truth':>8} {'choices':>8} {'seconds':>8}  landmarks it can be")
+    for r in args.readings:
+        labelled = list(lines)
+        for k, i in enumerate(observations):
+            if k != r:
+                record = json.loads(labelled[i])
+                record["landmark"] = truth[k]
+                labelled[i] = json.dumps(record)
+        start = time.perf_counter()
+        solution = solve_unknown(parse_log_lines(labelled), consistency=args.level)
+        seconds = time.perf_counter() - start
+        choices = [h.assignment[r] for h in solution.hypotheses]
+        print(f"{r:>8} {truth[r]:>8} {len(choices):>8} {seconds:>8.1f}  {' '.join(choices)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
