@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from cuikslam.errors import InputFileError
+from cuikslam.hypotheses import solve_unknown
 from cuikslam.hypotheses.witness import HypothesisModel, fit_hypotheses
 from cuikslam.hypotheses.witness.fit import fit_cost
 from cuikslam.log.reader import parse_log_lines
@@ -125,3 +126,42 @@ def test_an_outlier_is_fitted_as_if_its_reading_were_not_in_the_log() -> None:
     alone, _ = fit_cost(HypothesisModel(reduced, ["B"]), taken)
     assert math.isfinite(taken.fit)
     assert taken.fit == alone
+
+
+# a robot known to 0.3 m, two doors 0.4 m apart: a reading of door A from the prior's
+# centre; door B, 0.4 m to the left, fits it only if the robot stood 0.2-0.3 m left of the
+# centre, so that hypothesis has the narrower pose box (y in [0.2, 0.3] against [-0.2, 0.2])
+# and the search, which keeps the smallest boxes, reports it first
+NEAR_CONTRADICTION = [
+    '{"type": "prior", "pose": 0, "x": [-0.3, 0.3], "y": [-0.3, 0.3], "theta": [0, 0]}',
+    '{"type": "landmark", "id": "A", "class": "door", "x": [1.99, 2.01], "y": [-0.01, 0.01]}',
+    '{"type": "landmark", "id": "B", "class": "door", "x": [1.99, 2.01], "y": [0.39, 0.41]}',
+    '{"type": "class", "class": "door", "at_most": 2}',
+    _reading(0.0),
+]
+
+
+def test_the_best_fitting_survivor_is_reported_even_beyond_max_hypotheses() -> None:
+    """One hypothesis reported of two: the search keeps door B (smaller boxes), the fit
+    reports door A in its place, with the boxes a known-correspondence solve gives it,
+    and says so."""
+    log = parse_log_lines(NEAR_CONTRADICTION)
+    search = solve_unknown(log, max_hypotheses=1)
+    assert [h.assignment for h in search.hypotheses] == [["B"]]
+    assert search.unreported == [["A"]]
+    solution = solve(log, certify_limit=0, time_budget=None, max_hypotheses=1)
+    [h] = solution.hypotheses
+    assert h.assignment == ["A"]
+    assert solution.statistics["promoted_hypotheses"] == 1
+    assert solution.unreported == []  # used, not carried in the result
+    assert any("reported in their place" in m for m in solution.messages)
+    labelled = parse_log_lines(
+        [*NEAR_CONTRADICTION[:-1], _reading(0.0)[:-1] + ', "landmark": "A"}']
+    )
+    [alone] = solve(labelled, certify_limit=0, time_budget=None, consistency="hull").hypotheses
+    assert np.array_equal(h.poses, alone.poses)
+    assert np.array_equal(h.landmarks, alone.landmarks)
+    both = solve(log, certify_limit=0, time_budget=None, max_hypotheses=2).hypotheses
+    assert [b.assignment for b in both] == [["A"], ["B"]]
+    assert h.fit == pytest.approx(both[0].fit, rel=1e-6)
+    assert both[0].fit < both[1].fit

@@ -18,7 +18,7 @@ from cuikslam.budget import STRENGTHEN_SHARE, deadline_after, portion
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.hypotheses.search import solve_unknown
 from cuikslam.hypotheses.witness import certify, fit_hypotheses
-from cuikslam.log.records import Log
+from cuikslam.log.records import Log, Observation
 from cuikslam.narrowing.consistency import StrengthenReport, resolve_level, strengthen
 from cuikslam.narrowing.outliers import RelaxedReport, narrow_with_outliers
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
@@ -26,12 +26,13 @@ from cuikslam.options import SolveOptions
 from cuikslam.outliers import (
     certify_without_outliers,
     hypothesis_outlier_messages,
+    log_without_observations,
     outlier_messages,
     outlier_scope,
     outliers_to_json,
     reject_unknown,
 )
-from cuikslam.results.solution import Hypothesis, Solution
+from cuikslam.results.solution import OUTLIER, Hypothesis, Solution
 
 __all__ = ["budget_message", "hypothesis_from_graph", "solve"]
 
@@ -48,11 +49,11 @@ a 401-pose window took 20 s and 1 GB, and the whole 1,262-pose run made 3 evalua
 219 s (before ``lsmr``). Within the cap the time budget (or, without one, the witness'
 work limit) bounds the search."""
 SEARCH_SHARE = 0.8
+"""Fraction of the time budget the correspondence search (with its survivors' stronger
+level) may use; the witness search gets the rest, and whatever the search did not need."""
 FIT_SHARE = 0.5
 """Share of the time left after the search that the least-squares fit of the reported
 hypotheses (their ranking) may use; the witness search gets the rest."""
-"""Fraction of the time budget the correspondence search (with its survivors' stronger
-level) may use; the witness search gets the rest, and whatever the search did not need."""
 
 
 def hypothesis_from_graph(
@@ -203,8 +204,10 @@ def solve(
         )
     else:
         solution = _solve_known(log, consistency, options.rtol, progress, deadline, options.threads)
-    if unknown and len(solution.hypotheses) > 1:
-        fit_hypotheses(log, solution, portion(deadline, FIT_SHARE))
+    if unknown and (len(solution.hypotheses) > 1 or solution.unreported):
+        known = _boxes_of(log, options.rtol, deadline)
+        fit_hypotheses(log, solution, portion(deadline, FIT_SHARE), known=known)
+    solution.unreported = []  # used: not carried in the result
     certify_limit = options.certify_limit
     if n_poses > CERTIFY_MAX_POSES and certify_limit != 0 and solution.hypotheses:
         certify_limit = 0  # the witness search is a dense least-squares problem
@@ -311,6 +314,31 @@ def _solve_known(
         messages=messages,
         outliers=outliers,
     )
+
+
+def _boxes_of(
+    log: Log, rtol: float, deadline: float | None
+) -> Callable[[list[str]], Hypothesis | None]:
+    """The boxes of a hypothesis of ``log`` given by its assignment: the log with every
+    observation labelled (those it takes as outliers, and the outliers declaration, left
+    out) solved at ``hull``; None when that proves it impossible."""
+
+    def boxes(assignment: list[str]) -> Hypothesis | None:
+        drop = {i for i, a in enumerate(assignment) if a == OUTLIER}
+        reduced = log_without_observations(log, drop)
+        labels = iter([a for a in assignment if a != OUTLIER])
+        records = [
+            replace(r, landmark=next(labels)) if isinstance(r, Observation) else r
+            for r in reduced.records
+        ]
+        solved = _solve_known(Log(records=records, path=log.path), "hull", rtol, None, deadline)
+        if not solved.hypotheses:
+            return None
+        [h] = solved.hypotheses
+        h.assignment, h.consistency = list(assignment), "hull"
+        return h
+
+    return boxes
 
 
 def budget_message(level: str, report: StrengthenReport) -> str:

@@ -38,6 +38,7 @@ from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
 from cuikslam.options import SolveOptions
 from cuikslam.outliers import search_outliers_json
+from cuikslam.results.association import partition
 from cuikslam.results.solution import OUTLIER as OUTLIER_MARK
 from cuikslam.results.solution import Hypothesis, Solution
 from cuikslam.results.summary import describe, summarize, summary_to_json
@@ -50,6 +51,9 @@ __all__ = [
 ]
 
 DEFAULT_MAX_HYPOTHESES = SolveOptions.max_hypotheses
+MAX_UNREPORTED = 1000
+"""Survivors beyond the report whose assignments the solution keeps (``unreported``), for
+the least-squares fit that may report them instead (:mod:`.witness.fit`)."""
 """Survivors reported in detail at most (the best-ranked); the search itself explores all."""
 DEFAULT_STRENGTHEN_LIMIT = SolveOptions.strengthen_limit
 """Survivors narrowed to the stronger consistency level at most (else the best-ranked)."""
@@ -405,8 +409,17 @@ def finish_search(
             "reported (raise --max-hypotheses to see more)"
         )
     correspondence = None
+    unreported: list[list[str]] = []
     if hypotheses or stats.survivors:  # survivors beyond the report still count
         kept = tally.kept()
+        if stats.survivors > len(hypotheses):
+            named = set(problem.named)
+            shown = {tuple(partition(h.assignment, named)) for h in hypotheses}
+            for a in kept:
+                if len(unreported) >= MAX_UNREPORTED:
+                    break
+                if tuple(partition(a, named)) not in shown:
+                    unreported.append(a)
         summary = summarize(kept, set(problem.named), tally.poses())
         messages.append(describe(summary, stats.survivors, complete, len(kept)))
         correspondence = {
@@ -450,4 +463,5 @@ def finish_search(
         messages=messages,
         correspondence=correspondence,
         outliers=outliers,
+        unreported=unreported,
     )

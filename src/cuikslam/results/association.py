@@ -62,6 +62,28 @@ def partition(assignment: Sequence[str], named: Collection[str] = frozenset()) -
     ]
 
 
+def display_names(assignment: Sequence[str], named: Collection[str]) -> list[str]:
+    """The assignment with its unnamed landmarks named as a solve reports them: ``L1``,
+    ``L2``, ... (``N1``, ... when the log names landmarks) in order of first appearance,
+    never reusing one of the log's ids (``named``).
+
+    >>> display_names(["+1", "A", "+2", "+1", "outlier"], {"A", "N1"})
+    ['N2', 'A', 'N3', 'N2', 'outlier']
+    """
+    prefix = "N" if named else "L"
+    names: dict[str, str] = {}
+    count = 0
+    out = []
+    for a in assignment:
+        if a not in named and a != OUTLIER and a not in names:
+            count += 1
+            while f"{prefix}{count}" in named:
+                count += 1
+            names[a] = f"{prefix}{count}"
+        out.append(names.get(a, a))
+    return out
+
+
 def named_landmarks(log: Log) -> set[str]:
     """Landmark ids the log itself gives (named sightings and landmark priors)."""
     return {r.landmark for r in log.records if getattr(r, "landmark", None) is not None}

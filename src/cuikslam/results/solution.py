@@ -124,6 +124,11 @@ class Solution:
     outliers: dict | None = None
     """When the log declares outliers: the declaration and the observations proven to be
     outliers (JSON-ready; see :func:`cuikslam.outliers.outliers_to_json`)."""
+    unreported: list[list[str]] = field(default_factory=list, repr=False)
+    """Unknown correspondence: the assignments of survivors the search found but did not
+    report in detail (the first ``MAX_UNREPORTED`` of them; never written to files), from
+    which :func:`~cuikslam.hypotheses.witness.fit_hypotheses` reports the best-fitting;
+    :func:`~cuikslam.solver.solve` empties it once used."""
 
     @property
     def best(self) -> Hypothesis:

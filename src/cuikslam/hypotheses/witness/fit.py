@@ -11,6 +11,10 @@ least-squares back end minimises with those as standard deviations), and
 Woods (2,000 samples, every id dropped, the surveyed map, 176 survivors) the truth ranks
 first by it (cost 45.5, the next 48.1); by smallest boxes it ranked last.
 
+When more survive than are reported, the search keeps those with the smallest boxes for
+the report; the others (``Solution.unreported``) are fitted too, and those that fit better
+are reported in place of worse ones, with the boxes of a known-correspondence solve.
+
 The fit only orders the report: every reported hypothesis stays possible or undecided,
 whatever its cost, and the guarantee does not depend on it.
 """
@@ -19,6 +23,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -34,7 +39,8 @@ from cuikslam.hypotheses.witness.find import (
 from cuikslam.hypotheses.witness.model import HypothesisModel
 from cuikslam.log.records import Log
 from cuikslam.outliers import log_without_observations
-from cuikslam.results.solution import Hypothesis, Solution
+from cuikslam.results.association import display_names, named_landmarks
+from cuikslam.results.solution import OUTLIER, Hypothesis, Solution
 
 __all__ = ["FIT_EVALUATIONS", "FIT_MAX_HYPOTHESES", "fit_cost", "fit_hypotheses"]
 
@@ -51,15 +57,15 @@ witness search uses 1e-14; on Lost in the Woods the costs agree with 1e-8's to 1
 
 def fit_cost(
     model: HypothesisModel,
-    hypothesis: Hypothesis,
+    hypothesis: Hypothesis | None,
     deadline: float | None = None,
     max_evaluations: int = FIT_EVALUATIONS,
     start: np.ndarray | None = None,
 ) -> tuple[float, np.ndarray | None]:
     """The least-squares cost of ``model`` and its minimiser, from the centres of
-    ``hypothesis``' boxes or from ``start`` (parameters of the same model, e.g. another
-    hypothesis' minimiser), whichever costs less; (NaN, None) when the model has structural
-    problems or the optimiser fails.
+    ``hypothesis``' boxes (None: the intervals' midpoints) or from ``start`` (parameters of
+    the same model, e.g. another hypothesis' minimiser), whichever costs less; (NaN, None)
+    when the model has structural problems or the optimiser fails.
 
     Raises :class:`~cuikslam.budget.OutOfTime` when ``deadline`` passes first.
 
@@ -75,9 +81,12 @@ def fit_cost(
     """
     if model.problems:
         return math.nan, None
-    poses_box = {pid: hypothesis.poses[k] for k, pid in enumerate(hypothesis.pose_ids)}
-    marks_box = {lid: hypothesis.landmarks[k] for k, lid in enumerate(hypothesis.landmark_ids)}
-    p0 = model.initial_params(poses_box, marks_box, deadline=deadline)
+    if hypothesis is None:
+        p0 = model.initial_params(deadline=deadline)
+    else:
+        poses = {pid: hypothesis.poses[k] for k, pid in enumerate(hypothesis.pose_ids)}
+        marks = {lid: hypothesis.landmarks[k] for k, lid in enumerate(hypothesis.landmark_ids)}
+        p0 = model.initial_params(poses, marks, deadline=deadline)
     free = model.free
     lb, ub = _param_bounds(model)
     if start is not None and start.shape == p0.shape:
@@ -115,42 +124,72 @@ def _cost(model: HypothesisModel, p: np.ndarray) -> float:
         return float(np.sum(model.centre_residuals(p)[0] ** 2))
 
 
+class _Fitter:
+    """Fits hypotheses of one log, each least squares started also from the minimiser of
+    the last hypothesis with the same parameters: most differ in a few readings (on Lost
+    in the Woods, 200 poses, 5 evaluations instead of 8)."""
+
+    def __init__(self, log: Log, deadline: float | None, max_evaluations: int) -> None:
+        self.log, self.deadline, self.max_evaluations = log, deadline, max_evaluations
+        self.minimisers: dict[tuple[str, ...], np.ndarray] = {}  # by the model's parameters
+
+    def fit(self, assignment: list[str], boxes: Hypothesis | None) -> float:
+        """The fit of ``assignment`` (NaN: none); raises OutOfTime at the deadline.
+
+        Observations it takes as outliers are left out of the log: an outlier explains
+        nothing."""
+        drop = {i for i, a in enumerate(assignment) if a == OUTLIER}
+        log = log_without_observations(self.log, drop) if drop else self.log
+        model = HypothesisModel(log, [a for a in assignment if a != OUTLIER])
+        layout = tuple(model.param_names)
+        cost, p = fit_cost(
+            model, boxes, self.deadline, self.max_evaluations, self.minimisers.get(layout)
+        )
+        if p is not None:
+            self.minimisers[layout] = p
+        return cost
+
+
 def fit_hypotheses(
     log: Log,
     solution: Solution,
     deadline: float | None = None,
     max_evaluations: int = FIT_EVALUATIONS,
+    known: Callable[[list[str]], Hypothesis | None] | None = None,
 ) -> int:
     """Give every hypothesis of ``solution`` its least-squares ``fit``, in rank order, and
-    rank them again (:attr:`~cuikslam.results.Hypothesis.rank_key`); returns how many got
-    one.
+    rank them again (:attr:`~cuikslam.results.Hypothesis.rank_key`); returns how many
+    reported hypotheses have one.
 
     A hypothesis that takes observations as outliers is fitted on the log without them
-    (an outlier explains nothing). Each least squares may also start from the minimiser of
-    the last hypothesis with the same parameters: most differ in a few readings (on Lost in
-    the Woods, 200 poses, 5 evaluations instead of 8; its 176 survivors took 88 s). At
-    ``deadline`` (a :func:`time.perf_counter` value) the rest keep no fit (NaN: they rank
-    after the fitted ones of their group) and ``solution.messages`` says how many; so do
-    those beyond the first ``FIT_MAX_HYPOTHESES``.
+    (an outlier explains nothing). On Lost in the Woods (200 poses) the 176 survivors took
+    88 s. At ``deadline`` (a :func:`time.perf_counter` value) the rest keep no fit (NaN:
+    they rank after the fitted ones of their group) and ``solution.messages`` says how
+    many; so do those beyond the first ``FIT_MAX_HYPOTHESES``.
+
+    With ``known`` (the boxes of a hypothesis given by its assignment, e.g. a
+    known-correspondence solve; None when proven impossible), the survivors the search
+    found but did not report (``solution.unreported``) are fitted too, within the same
+    deadline, and those that rank before reported ones are reported in their place, with
+    the boxes ``known`` gives (statistic ``promoted_hypotheses``): the report is chosen by
+    smallest boxes, which on Lost in the Woods left the truth out of the 100 reported.
     """
     started = time.perf_counter()
-    fitted, tried = 0, 0
-    minimisers: dict[tuple[str, ...], np.ndarray] = {}  # by the model's parameters
+    tried = 0
+    fitter = _Fitter(log, deadline, max_evaluations)
     for h in solution.hypotheses[:FIT_MAX_HYPOTHESES]:
         if expired(deadline):
             break
-        reduced, assignment = _without_outliers(log, h)
         try:
-            model = HypothesisModel(reduced, assignment)
-            layout = tuple(model.param_names)
-            h.fit, p = fit_cost(model, h, deadline, max_evaluations, minimisers.get(layout))
+            h.fit = fitter.fit(h.assignment, h)
         except OutOfTime:
             break
-        if p is not None:
-            minimisers[layout] = p
         tried += 1
-        fitted += math.isfinite(h.fit)
     solution.hypotheses.sort(key=lambda h: h.rank_key)
+    if known is not None and tried == len(solution.hypotheses):
+        promoted = _promote(fitter, solution, known, FIT_MAX_HYPOTHESES - tried)
+        solution.statistics["promoted_hypotheses"] = promoted
+    fitted = sum(math.isfinite(h.fit) for h in solution.hypotheses)  # promoted ones too
     solution.statistics["fitted_hypotheses"] = fitted
     solution.timings["fit_s"] = time.perf_counter() - started
     if 1 < len(solution.hypotheses) and tried < len(solution.hypotheses):
@@ -163,10 +202,50 @@ def fit_hypotheses(
     return fitted
 
 
-def _without_outliers(log: Log, h: Hypothesis) -> tuple[Log, list[str]]:
-    """The log and assignment of ``h`` without the observations it takes as outliers."""
-    drop = set(h.outliers)
-    if not drop:
-        return log, list(h.assignment)
-    assignment = [a for i, a in enumerate(h.assignment) if i not in drop]
-    return log_without_observations(log, drop), assignment
+def _promote(
+    fitter: _Fitter,
+    solution: Solution,
+    known: Callable[[list[str]], Hypothesis | None],
+    most: int,
+) -> int:
+    """Fit up to ``most`` unreported survivors and report those that rank before reported
+    ones in their place; returns how many."""
+    reported = solution.hypotheses
+    if not solution.unreported or not reported or most <= 0:
+        return 0
+    named = named_landmarks(fitter.log)
+    better: list[tuple[tuple, float, list[str]]] = []
+    for raw in solution.unreported[:most]:
+        if expired(fitter.deadline):
+            break
+        assignment = display_names(raw, named)
+        marks = {a for a in assignment if a != OUTLIER}
+        worst = reported[-1].rank_key
+        parsimony = (True, assignment.count(OUTLIER), len(named | marks))
+        if parsimony > worst[:3]:
+            continue  # ranks after every reported one whatever its fit
+        try:
+            fit = fitter.fit(assignment, None)
+        except OutOfTime:
+            break
+        key = (*parsimony, round(fit, 6) if math.isfinite(fit) else math.inf)
+        if key < worst[:4]:
+            better.append((key, fit, assignment))
+    promoted = 0
+    for key, fit, assignment in sorted(better, key=lambda b: b[0]):
+        if not key < reported[-1].rank_key[:4]:
+            break
+        h = known(assignment)
+        if h is None:
+            continue
+        h.fit = fit
+        reported[-1] = h
+        reported.sort(key=lambda r: r.rank_key)
+        promoted += 1
+    if promoted:
+        solution.messages.append(
+            f"{promoted} survivors the search had not kept for the report fit the readings "
+            "better than reported ones and are reported in their place (their boxes from a "
+            "known-correspondence solve at 'hull')"
+        )
+    return promoted
