@@ -388,11 +388,13 @@ def finish_search(
     survivors = _bisect_survivors(explorer, found, strengthen_limit, refute)
     if stats.refuted_by_bisection:
         after = stats.refuted_by_bisection - as_leaves
+        words = ("hypothesis", "its", "box"), ("hypotheses", "their", "boxes")
+        what, whose, boxes = words[stats.refuted_by_bisection != 1]
         messages.append(
-            f"bisection proved {stats.refuted_by_bisection} hypotheses impossible that "
-            f"narrowing their whole boxes left ({as_leaves} as the search reached them, "
-            f"{after} of {len(found)} survivors after it): every part of their boxes "
-            "contracts to empty"
+            f"bisection proved {stats.refuted_by_bisection} {what} impossible that narrowing "
+            f"{whose} whole {boxes} left ({as_leaves} as the search reached them, {after} of "
+            f"{len(found)} survivors after it): every part of {whose} {boxes} contracts to "
+            "empty"
         )
     survivors, level = _strengthen_survivors(
         explorer, survivors, consistency, strengthen_limit, messages
