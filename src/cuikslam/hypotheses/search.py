@@ -38,7 +38,7 @@ from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
 from cuikslam.options import SolveOptions
 from cuikslam.outliers import search_outliers_json
-from cuikslam.results.association import partition
+from cuikslam.results.association import anonymous_names, partition
 from cuikslam.results.solution import OUTLIER as OUTLIER_MARK
 from cuikslam.results.solution import Hypothesis, Solution
 from cuikslam.results.summary import describe, summarize, summary_to_json
@@ -181,18 +181,10 @@ def _hypothesis(explorer: Explorer, node: Node) -> Hypothesis:
     xs = explorer.landmark_xs(node)
     first = [*p.first_seen, *(p.decisions[k].record for k in node.blocks)]
     order = sorted(range(len(xs)), key=lambda n: first[n])
-    prefix = "N" if p.named else "L"
-    taken = set(p.named)
+    fresh = anonymous_names(set(p.named))
     names: dict[int, str] = {OUTLIER: OUTLIER_MARK}
-    count = 0
     for n in order:
-        if n < explorer.n_named:
-            names[n] = p.named[n]
-        else:
-            count += 1
-            while f"{prefix}{count}" in taken:  # a user's id is never reused
-                count += 1
-            names[n] = f"{prefix}{count}"
+        names[n] = p.named[n] if n < explorer.n_named else next(fresh)
     assignment = [""] * p.n_observations
     for position, n in p.named_assignment.items():
         assignment[position] = names[n]

@@ -17,7 +17,7 @@ True
 
 from __future__ import annotations
 
-from collections.abc import Collection, Sequence
+from collections.abc import Collection, Iterator, Sequence
 from dataclasses import dataclass, field
 
 from cuikslam.log.records import Log
@@ -62,26 +62,36 @@ def partition(assignment: Sequence[str], named: Collection[str] = frozenset()) -
     ]
 
 
+def anonymous_names(named: Collection[str]) -> Iterator[str]:
+    """Names for a hypothesis' unnamed landmarks, in order of first appearance: ``L1``,
+    ``L2``, ... (``N1``, ... when the log names landmarks), never one of the log's ids
+    (``named``).
+
+    >>> from itertools import islice
+    >>> list(islice(anonymous_names({"A", "N2"}), 3))
+    ['N1', 'N3', 'N4']
+    """
+    prefix = "N" if named else "L"
+    count = 0
+    while True:
+        count += 1
+        if f"{prefix}{count}" not in named:
+            yield f"{prefix}{count}"
+
+
 def display_names(assignment: Sequence[str], named: Collection[str]) -> list[str]:
-    """The assignment with its unnamed landmarks named as a solve reports them: ``L1``,
-    ``L2``, ... (``N1``, ... when the log names landmarks) in order of first appearance,
-    never reusing one of the log's ids (``named``).
+    """The assignment with its unnamed landmarks named as a solve reports them
+    (:func:`anonymous_names`).
 
     >>> display_names(["+1", "A", "+2", "+1", "outlier"], {"A", "N1"})
     ['N2', 'A', 'N3', 'N2', 'outlier']
     """
-    prefix = "N" if named else "L"
+    fresh = anonymous_names(named)
     names: dict[str, str] = {}
-    count = 0
-    out = []
     for a in assignment:
         if a not in named and a != OUTLIER and a not in names:
-            count += 1
-            while f"{prefix}{count}" in named:
-                count += 1
-            names[a] = f"{prefix}{count}"
-        out.append(names.get(a, a))
-    return out
+            names[a] = next(fresh)
+    return [names.get(a, a) for a in assignment]
 
 
 def named_landmarks(log: Log) -> set[str]:
