@@ -223,6 +223,7 @@ def test_the_truth_verifies_and_a_moved_point_does_not() -> None:
 
 
 _FAST = settings(max_examples=40, deadline=None, suppress_health_check=list(HealthCheck))
+_MANY = settings(max_examples=1000, deadline=None, suppress_health_check=list(HealthCheck))
 
 
 def _found(seed: int, n_poses: int) -> None:
@@ -240,7 +241,7 @@ def test_true_hypotheses_get_a_verified_witness(seed: int, n_poses: int) -> None
 
 
 @pytest.mark.slow
-@settings(max_examples=1000, deadline=None, suppress_health_check=list(HealthCheck))
+@_MANY
 @given(seed=st.integers(0, 2**32 - 1), n_poses=st.integers(2, 10))
 def test_true_hypotheses_get_a_verified_witness_many(seed: int, n_poses: int) -> None:
     _found(seed, n_poses)
@@ -292,7 +293,7 @@ def test_impossible_hypotheses_never_verify(seed: int, n_poses: int) -> None:
 
 
 @pytest.mark.slow
-@settings(max_examples=1000, deadline=None, suppress_health_check=list(HealthCheck))
+@_MANY
 @given(seed=st.integers(0, 2**32 - 1), n_poses=st.integers(2, 10))
 def test_impossible_hypotheses_never_verify_many(seed: int, n_poses: int) -> None:
     _never_verified(seed, n_poses)
