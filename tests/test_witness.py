@@ -20,6 +20,7 @@ from cuikslam.hypotheses.witness import (
     inner_hull,
     verify_witness,
 )
+from cuikslam.hypotheses.witness.certification import FIRST_QUOTA
 from cuikslam.log.reader import parse_log_lines
 from cuikslam.log.records import (
     LandmarkPrior,
@@ -584,3 +585,20 @@ def test_a_point_prior_on_a_later_pose_anchors_the_witness() -> None:
     assert h.status == PROVEN
     assert h.witness is not None
     assert h.witness["poses_xyt"][h.pose_ids.index(2)].tolist() == [2.0, 1.0, 0.5]
+
+
+def test_a_hard_hypothesis_does_not_hold_back_an_easy_one() -> None:
+    """In certify's first round a start may use FIRST_QUOTA evaluations while several
+    hypotheses are open: an unprovable hypothesis ranked first gives up its turn there,
+    and the provable one behind it is proven in that same round."""
+    log, _ = simulate_paper(0)
+    solution = solve(log, certify_limit=0)
+    right = solution.best
+    wrong = replace(right, assignment=["L3", *right.assignment[1:]])
+    solution.hypotheses = [wrong, right]
+    alone = certify(log, replace(solution, hypotheses=[replace(wrong)]), max_total_evaluations=1)
+    assert alone.evaluations > 3 * (FIRST_QUOTA + 1)  # what its first round costs alone
+    stats = certify(log, solution, max_total_evaluations=1)  # the first round only
+    assert [h.status for h in solution.hypotheses] == [PROVEN, NOT_REFUTED]
+    assert solution.hypotheses[0] is right
+    assert stats.evaluations <= 3 * (FIRST_QUOTA + 1)

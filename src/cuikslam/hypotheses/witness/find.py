@@ -40,6 +40,11 @@ MAX_TOTAL_EVALUATIONS = 40_000
 """Residual evaluations one :func:`certify` may use for all its hypotheses together."""
 CENTRE_EVALUATIONS = 50
 """Evaluations of the least-squares estimate that starts each local search."""
+CENTRE_TOLERANCE = 1e-5
+"""scipy's tolerances (cost, step, gradient) on that estimate, and on the fit that ranks
+hypotheses (:mod:`.fit`): a starting point and a ranking need no more. On the Lost in the
+Woods window (201 poses) survivors were proven after 9-60 evaluations instead of 10-100
+with 1e-14, and the fit's costs agreed with 1e-8's to 1e-3."""
 MARGIN_EVALUATIONS = 200
 """Evaluations of each hinge (aimed margins) least-squares run."""
 TR_SOLVER = "exact"
@@ -89,6 +94,10 @@ class _OutOfWork(Exception):
     pass
 
 
+class _OverQuota(Exception):
+    """A start used the evaluations its round allowed (:meth:`WitnessSearch.run`)."""
+
+
 class _Verified(Exception):
     """A point of a least-squares run verified: the run stops there."""
 
@@ -105,6 +114,8 @@ class _Meter:
     limit: int
     stats: WitnessStatistics
     used: int = 0
+    quota_end: int | None = None
+    """``used`` beyond which the current start is over its round's quota."""
 
     def tick(self) -> None:
         self.used += 1
@@ -113,6 +124,8 @@ class _Meter:
             raise OutOfTime
         if self.used > self.limit:
             raise _OutOfWork
+        if self.quota_end is not None and self.used > self.quota_end:
+            raise _OverQuota
 
 
 def _polish_equalities(model: HypothesisModel, p: np.ndarray, iterations: int = 4) -> np.ndarray:
@@ -232,7 +245,7 @@ def _solve_margins(
         if centre:
             z = _least_squares(
                 on_free(model.centre_residuals), z, meter, CENTRE_EVALUATIONS, free, (lb, ub),
-                probe, solver,
+                probe, solver, CENTRE_TOLERANCE,
             )  # fmt: skip
         candidates = [_polish_equalities(model, full(z))]
         for scale in (1.0, 0.1, 0.01):
@@ -304,10 +317,12 @@ class WitnessSearch:
             None, self.landmarks_box, rng=self.rng, deadline=self.deadline
         ), False
 
-    def run(self, starts: int) -> None:
+    def run(self, starts: int, quota: int | None = None) -> None:
         """Try up to ``starts`` more starting points (fewer when it succeeds or a budget
-        runs out, which finishes the search)."""
-        stats, model = self.stats, self.model
+        runs out, which finishes the search). With ``quota``, a start that needs more
+        residual evaluations than that is abandoned and the run ends: the next run tries
+        that start again (from its beginning; a random one is drawn anew)."""
+        stats, model, meter = self.stats, self.model, self.meter
         with blas_single_thread(), np.errstate(all="ignore"):
             for _ in range(starts):
                 if self.finished:
@@ -317,9 +332,14 @@ class WitnessSearch:
                     return
                 stats.starts += 1
                 self.tried += 1
+                meter.quota_end = None if quota is None else meter.used + quota
                 try:
                     x0, centre = self._start(self.tried - 1)
-                    p, residual, box = _solve_margins(model, x0, self.meter, centre)
+                    p, residual, box = _solve_margins(model, x0, meter, centre)
+                except _OverQuota:
+                    stats.starts -= 1
+                    self.tried -= 1
+                    return
                 except OutOfTime:
                     stats.out_of_time = self.finished = True
                     return
