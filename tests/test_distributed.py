@@ -11,6 +11,7 @@ the machine, and boxes compared bit for bit would too.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import signal
@@ -115,19 +116,26 @@ def test_the_split_search_with_declared_outliers_matches(client) -> None:
 
 
 def test_the_best_ranked_and_the_stronger_level_match(client) -> None:
-    """A report shorter than the survivors, and the lp level on the best-ranked."""
+    """A report shorter than the survivors, and the lp level on the best-ranked; the same
+    with a ranking (``rank``: here the fit, with its promotion of unreported survivors)."""
     from cuikslam.hypotheses.distributed import search_distributed
+    from cuikslam.hypotheses.labelled import solve_labelled
+    from cuikslam.hypotheses.witness import fit_hypotheses
 
     log = ambiguous_log(2)
-    one = solve_unknown(
-        log, consistency="lp", max_hypotheses=3, strengthen_limit=2, strengthen_during=0
-    )
-    many = search_distributed(
-        log, client=client, consistency="lp", max_hypotheses=3, strengthen_limit=2,
-        strengthen_during=0, quantum_nodes=25,
-    )  # fmt: skip
-    assert len(one.hypotheses) == 3 and one.statistics["survivors"] > 3
-    assert_same_solution(one, many)
+    known = functools.partial(solve_labelled, log)
+    for rank in [None, lambda report: fit_hypotheses(log, report, known=known)]:
+        one = solve_unknown(
+            log, consistency="lp", max_hypotheses=3, strengthen_limit=2, strengthen_during=0,
+            rank=rank,
+        )  # fmt: skip
+        many = search_distributed(
+            log, client=client, consistency="lp", max_hypotheses=3, strengthen_limit=2,
+            strengthen_during=0, quantum_nodes=25, rank=rank,
+        )  # fmt: skip
+        assert len(one.hypotheses) == 3 and one.statistics["survivors"] > 3
+        assert_same_solution(one, many)
+        assert one.statistics.get("fitted_hypotheses") == (None if rank is None else 3)
 
 
 def test_a_node_budget_stop_names_every_unexplored_subtree(client) -> None:

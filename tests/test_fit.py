@@ -165,3 +165,34 @@ def test_the_best_fitting_survivor_is_reported_even_beyond_max_hypotheses() -> N
     assert [b.assignment for b in both] == [["A"], ["B"]]
     assert h.fit == pytest.approx(both[0].fit, rel=1e-6)
     assert both[0].fit < both[1].fit
+
+
+def test_the_stronger_level_follows_the_ranking() -> None:
+    """The search ranks its report (``rank``, the fit in ``solve``) before the stronger
+    level: with room for one narrowing, the hypothesis the ranking puts first gets it,
+    whichever has the smaller boxes."""
+    log = parse_log_lines(NEAR_CONTRADICTION)
+    for rank, first in [(None, "B"), (lambda report: report.hypotheses.reverse(), "A")]:
+        solution = solve_unknown(
+            log, max_hypotheses=2, consistency="lp", strengthen_limit=1, rank=rank
+        )
+        levels = {h.assignment[0]: h.consistency for h in solution.hypotheses}
+        assert levels == {first: "lp", ({"A", "B"} - {first}).pop(): "hull"}
+        assert solution.consistency == "hull"
+
+
+def test_a_promoted_survivor_gets_the_stronger_level_from_its_labelled_log() -> None:
+    """The survivor the fit reports in place of the search's choice has no node of the
+    search: the stronger level narrows its labelled log, to the boxes a known-correspondence
+    solve of that log gives at the same level."""
+    log = parse_log_lines(NEAR_CONTRADICTION)
+    solution = solve(log, certify_limit=0, time_budget=None, max_hypotheses=1, consistency="lp")
+    [h] = solution.hypotheses
+    assert h.assignment == ["A"] and solution.statistics["promoted_hypotheses"] == 1
+    assert h.consistency == "lp" == solution.consistency
+    labelled = parse_log_lines(
+        [*NEAR_CONTRADICTION[:-1], _reading(0.0)[:-1] + ', "landmark": "A"}']
+    )
+    [alone] = solve(labelled, certify_limit=0, time_budget=None, consistency="lp").hypotheses
+    assert np.array_equal(h.poses, alone.poses)
+    assert np.array_equal(h.landmarks, alone.landmarks)

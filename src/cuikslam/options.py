@@ -65,8 +65,8 @@ class SolveOptions:
         Survivors of the correspondence search reported in detail (the best-ranked); the
         search explores and counts all of them.
     strengthen_limit : int
-        The level is applied to every survivor when at most this many, else to the
-        best-ranked one.
+        The level is applied to every reported hypothesis (in rank order) when at most
+        this many are reported, else to the best-ranked one.
     strengthen_during : int or None
         Nodes of the unknown-correspondence search that would branch are first narrowed to
         level ``lp`` (briefly, see :meth:`cuikslam.hypotheses.explorer.Explorer.children`)

@@ -9,16 +9,16 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import replace
+from functools import partial
 from typing import Any
-
-import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import STRENGTHEN_SHARE, deadline_after, portion
 from cuikslam.graph.kinematic_graph import KinematicGraph
+from cuikslam.hypotheses.labelled import hypothesis_from_graph, solve_labelled
 from cuikslam.hypotheses.search import solve_unknown
 from cuikslam.hypotheses.witness import certify, fit_hypotheses
-from cuikslam.log.records import Log, Observation
+from cuikslam.log.records import Log
 from cuikslam.narrowing.consistency import StrengthenReport, resolve_level, strengthen
 from cuikslam.narrowing.outliers import RelaxedReport, narrow_with_outliers
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
@@ -26,13 +26,12 @@ from cuikslam.options import SolveOptions
 from cuikslam.outliers import (
     certify_without_outliers,
     hypothesis_outlier_messages,
-    log_without_observations,
     outlier_messages,
     outlier_scope,
     outliers_to_json,
     reject_unknown,
 )
-from cuikslam.results.solution import OUTLIER, Hypothesis, Solution
+from cuikslam.results.solution import Solution
 
 __all__ = ["budget_message", "hypothesis_from_graph", "solve"]
 
@@ -53,26 +52,8 @@ SEARCH_SHARE = 0.8
 level) may use; the witness search gets the rest, and whatever the search did not need."""
 FIT_SHARE = 0.5
 """Share of the time left after the search that the least-squares fit of the reported
-hypotheses (their ranking) may use; the witness search gets the rest."""
-
-
-def hypothesis_from_graph(
-    graph: KinematicGraph,
-    lo: np.ndarray,
-    hi: np.ndarray,
-    assignment: list[str],
-    consistency: str = "",
-) -> Hypothesis:
-    """Package a graph's narrowed bounds as a :class:`Hypothesis`."""
-    return Hypothesis(
-        assignment=list(assignment),
-        pose_ids=list(graph.pose_ids),
-        poses=graph.pose_boxes(lo, hi),
-        landmark_ids=list(graph.landmark_ids),
-        landmark_classes=list(graph.landmark_classes),
-        landmarks=graph.landmark_boxes(lo, hi),
-        consistency=consistency,
-    )
+hypotheses (their ranking) may use; the stronger level (within ``SEARCH_SHARE``) and the
+witness search get the rest."""
 
 
 _WARM_UP_LOG = [
@@ -171,10 +152,11 @@ def solve(
     ``time_budget`` (seconds, None for no limit) bounds the whole solve. With known
     correspondence the fixpoint of the factors always runs to the end (it takes
     milliseconds); the stronger level may use ``STRENGTHEN_SHARE`` of the time left, and
-    the witness search the rest. With unknown correspondence the search (and its
-    survivors' stronger level) gets ``SEARCH_SHARE`` of the budget, then the least-squares
-    fit that ranks its survivors (:func:`~cuikslam.hypotheses.witness.fit_hypotheses`)
-    ``FIT_SHARE`` of the time left. A stage that runs out
+    the witness search the rest. With unknown correspondence the search gets
+    ``SEARCH_SHARE`` of the budget; when it ends, the least-squares fit that ranks its
+    survivors (:func:`~cuikslam.hypotheses.witness.fit_hypotheses`) may use ``FIT_SHARE``
+    of the time left, and the stronger level then narrows them in that order, within the
+    search's share. A stage that runs out
     stops soundly and says so: the level actually reached (e.g. ``"lp (budget)"``, see
     :mod:`cuikslam.narrowing.consistency`) in ``Solution.consistency`` and each
     hypothesis' ``consistency``, a hypothesis left ``not refuted`` rather than proven, an
@@ -201,13 +183,15 @@ def solve(
             progress=progress,
             deadline=portion(deadline, SEARCH_SHARE),
             on_survivor=on_survivor,
+            rank=lambda report: fit_hypotheses(
+                log,
+                report,
+                portion(deadline, FIT_SHARE),
+                known=partial(solve_labelled, log, rtol=options.rtol),
+            ),
         )
     else:
         solution = _solve_known(log, consistency, options.rtol, progress, deadline, options.threads)
-    if unknown and (len(solution.hypotheses) > 1 or solution.unreported):
-        known = _boxes_of(log, options.rtol, deadline)
-        fit_hypotheses(log, solution, portion(deadline, FIT_SHARE), known=known)
-    solution.unreported = []  # used: not carried in the result
     certify_limit = options.certify_limit
     if n_poses > CERTIFY_MAX_POSES and certify_limit != 0 and solution.hypotheses:
         certify_limit = 0  # the witness search is a dense least-squares problem
@@ -314,31 +298,6 @@ def _solve_known(
         messages=messages,
         outliers=outliers,
     )
-
-
-def _boxes_of(
-    log: Log, rtol: float, deadline: float | None
-) -> Callable[[list[str]], Hypothesis | None]:
-    """The boxes of a hypothesis of ``log`` given by its assignment: the log with every
-    observation labelled (those it takes as outliers, and the outliers declaration, left
-    out) solved at ``hull``; None when that proves it impossible."""
-
-    def boxes(assignment: list[str]) -> Hypothesis | None:
-        drop = {i for i, a in enumerate(assignment) if a == OUTLIER}
-        reduced = log_without_observations(log, drop)
-        labels = iter([a for a in assignment if a != OUTLIER])
-        records = [
-            replace(r, landmark=next(labels)) if isinstance(r, Observation) else r
-            for r in reduced.records
-        ]
-        solved = _solve_known(Log(records=records, path=log.path), "hull", rtol, None, deadline)
-        if not solved.hypotheses:
-            return None
-        [h] = solved.hypotheses
-        h.assignment, h.consistency = list(assignment), "hull"
-        return h
-
-    return boxes
 
 
 def budget_message(level: str, report: StrengthenReport) -> str:

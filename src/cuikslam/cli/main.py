@@ -68,8 +68,8 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
         "--strengthen-limit",
         type=_positive_int,
         default=SolveOptions.strengthen_limit,
-        help="apply the --consistency level to every surviving hypothesis when at most this "
-        "many survive, else to the best-ranked one only (default %(default)s)",
+        help="apply the --consistency level to every reported hypothesis when at most this "
+        "many are reported, else to the best-ranked one only (default %(default)s)",
     )
     p.add_argument(
         "--strengthen-during",

@@ -38,6 +38,7 @@ from cuikslam.hypotheses.search import (
     DEFAULT_STRENGTHEN_DURING,
     DEFAULT_STRENGTHEN_LIMIT,
     SEARCH_SHARE,
+    Rank,
     finish_search,
 )
 from cuikslam.hypotheses.subtrees import (
@@ -129,6 +130,7 @@ def search_distributed(
     quantum_nodes: int | None = None,
     on_result: Callable[[SubtreeResult], None] | None = None,
     on_unexplored: Callable[[list[Prefix]], None] | None = None,
+    rank: Rank | None = None,
 ) -> Solution:
     """:func:`~cuikslam.hypotheses.solve_unknown` with its subtrees explored on ``client``'s
     workers (a :class:`distributed.Client`); the same parameters, and:
@@ -190,7 +192,7 @@ def search_distributed(
     solution = finish_search(
         log, explorer, tally, found, run.unexplored(), run.stop_reason(), consistency,
         strengthen_limit, progress, start, messages,
-        lambda *job: _refute_on_cluster(client, slots, *job),
+        lambda *job: _refute_on_cluster(client, slots, *job), rank,
     )  # fmt: skip
     solution.statistics.update(
         tasks=run.tasks, resubmitted=run.resubmitted, lost_on_replay=run.lost_on_replay,

@@ -29,8 +29,9 @@ from cuikslam.budget import portion
 from cuikslam.hypotheses._shared import SharedGraph
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer
+from cuikslam.hypotheses.labelled import solve_labelled
 from cuikslam.hypotheses.outlier_option import OUTLIER
-from cuikslam.hypotheses.problem import build_problem
+from cuikslam.hypotheses.problem import Problem, build_problem
 from cuikslam.hypotheses.tally import Tally
 from cuikslam.hypotheses.tree import Budget, Node
 from cuikslam.log.records import Log
@@ -38,7 +39,12 @@ from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
 from cuikslam.options import SolveOptions
 from cuikslam.outliers import search_outliers_json
-from cuikslam.results.association import anonymous_names, partition
+from cuikslam.results.association import (
+    anonymous_names,
+    display_names,
+    named_landmarks,
+    partition,
+)
 from cuikslam.results.solution import OUTLIER as OUTLIER_MARK
 from cuikslam.results.solution import Hypothesis, Solution
 from cuikslam.results.summary import describe, summarize, summary_to_json
@@ -51,12 +57,13 @@ __all__ = [
 ]
 
 DEFAULT_MAX_HYPOTHESES = SolveOptions.max_hypotheses
+"""Survivors reported in detail at most (the best-ranked); the search itself explores all."""
 MAX_UNREPORTED = 1000
 """Survivors beyond the report whose assignments the solution keeps (``unreported``), for
 the least-squares fit that may report them instead (:mod:`.witness.fit`)."""
-"""Survivors reported in detail at most (the best-ranked); the search itself explores all."""
 DEFAULT_STRENGTHEN_LIMIT = SolveOptions.strengthen_limit
-"""Survivors narrowed to the stronger consistency level at most (else the best-ranked)."""
+"""Reported survivors narrowed to the stronger consistency level at most (else the
+best-ranked)."""
 BEST_ATTEMPTS = 10
 """Beyond ``strengthen_limit`` survivors, the best-ranked are tried until one is not refuted."""
 DEFAULT_STRENGTHEN_DURING = SolveOptions.strengthen_during
@@ -204,6 +211,22 @@ def _hypothesis(explorer: Explorer, node: Node) -> Hypothesis:
     )
 
 
+def _unreported(tally: Tally, problem: Problem, report: list[Entry]) -> list[list[str]]:
+    """The assignments of the first ``MAX_UNREPORTED`` survivors not in ``report`` (none
+    when every survivor is reported)."""
+    if tally.explorer.stats.survivors <= len(report):
+        return []
+    named = set(problem.named)
+    shown = {tuple(partition(h.assignment, named)) for h, _ in report}
+    unreported: list[list[str]] = []
+    for a in tally.kept():
+        if len(unreported) >= MAX_UNREPORTED:
+            break
+        if tuple(partition(a, named)) not in shown:
+            unreported.append(a)
+    return unreported
+
+
 Refute = Callable[[list[Bisection], float | None, int, int], list[bool]]
 """Runs bisections (a list, a deadline, parts per bisection, parts in all) and says which
 are refuted: :func:`~.bisection.refute_by_bisection`, or a cluster's map of it."""
@@ -230,32 +253,64 @@ def _bisect_survivors(
     return [n for n, r in zip(survivors, refuted, strict=True) if not r]
 
 
-def _strengthen_survivors(
-    explorer: Explorer, survivors: list[Node], level: str, limit: int, messages: list[str]
-) -> tuple[list[Node], str]:
-    """Narrow the survivors to ``level`` (all when at most ``limit``, else the best-ranked
-    until one is not refuted); returns them and the level all of them reach."""
-    if level == "hull" or not survivors:
-        return survivors, level
-    if len(survivors) <= limit:
-        out = [explorer.strengthen_node(n, level) for n in survivors]
-        kept = [n for n in out if n is not None]
-        short = [n.level for n in kept if n.level != level]  # a deadline cut them short
-        return kept, short[0] if short else level
-    messages.append(
-        f"{len(survivors)} hypotheses survived: the '{level}' level was applied to one of "
-        "them only, the first by fewest landmarks, then smallest boxes (to all when at most "
-        f"{limit} survive; raise --strengthen-limit); the others' boxes are at least "
-        "hull-consistent"
-    )
-    for _ in range(BEST_ATTEMPTS):
-        if not survivors:
-            break
-        best = explorer.strengthen_node(survivors[0], level)
-        if best is not None:
-            return [best, *survivors[1:]], "hull"
-        survivors = survivors[1:]
-    return survivors, "hull"
+Rank = Callable[[Solution], object]
+"""Orders the hull-level report before the stronger level narrows it (the least-squares
+fit, :func:`~.witness.fit.fit_hypotheses`): it may reorder ``Solution.hypotheses``, put
+``Solution.unreported`` survivors in place of reported ones (with boxes of their own,
+level ``hull``), and add statistics, timings and messages."""
+
+
+Entry = tuple[Hypothesis, Node | None]
+"""A reported hypothesis and its node (None when the ranking put it in the report)."""
+
+
+def _strengthen_report(
+    explorer: Explorer,
+    report: list[Entry],
+    level: str,
+    limit: int,
+    messages: list[str],
+    labelled: Callable[[Hypothesis], Hypothesis | None],
+) -> tuple[list[Entry], list[Entry], str]:
+    """Narrow the reported hypotheses to ``level`` in report order: all of them when at
+    most ``limit`` are reported, else the first until one is not refuted. A hypothesis
+    with a node is narrowed there; one without (put in the report by the ranking) by
+    ``labelled`` (:func:`.labelled.solve_labelled`). Returns the report, the entries
+    refuted, and the level all of them reach."""
+    if level == "hull" or not report:
+        return report, [], level
+    every = len(report) <= limit
+    if not every:
+        messages.append(
+            f"{len(report)} hypotheses are reported: the '{level}' level was applied to "
+            f"one of them only, the first in rank order (to all when at most {limit}; raise "
+            "--strengthen-limit); the others' boxes are at least hull-consistent"
+        )
+    refuted: list[Entry] = []
+    reached = [] if every else ["hull"]
+    out: list[Entry] = []
+    attempts, done = 0, False
+    for h, node in report:
+        if not (every or (not done and attempts < BEST_ATTEMPTS)):
+            reached.append(h.consistency)
+            out.append((h, node))
+            continue
+        attempts += 1
+        if node is None:
+            better = labelled(h)
+            narrowed = None
+        else:
+            narrowed = explorer.strengthen_node(node, level)
+            better = None if narrowed is None else _hypothesis(explorer, narrowed)
+        if better is None:
+            refuted.append((h, node))
+            continue
+        done = True
+        better.fit = h.fit
+        reached.append(better.consistency)
+        out.append((better, narrowed))
+    short = [v for v in reached if v != level]  # cut short by a deadline, or never narrowed
+    return out, refuted, short[0] if short else level
 
 
 def solve_unknown(
@@ -271,6 +326,7 @@ def solve_unknown(
     max_nodes: int | None = None,
     on_survivor: Callable[[list[str]], None] | None = None,
     local_frame: bool = True,
+    rank: Rank | None = None,
 ) -> Solution:
     """Solve a log whose observations may lack landmark ids; return the surviving hypotheses.
 
@@ -284,7 +340,8 @@ def solve_unknown(
         Survivors reported in detail (the best-ranked: fewest outliers, fewest landmarks,
         then smallest boxes). It never limits the search: every survivor is counted.
     strengthen_limit : int
-        The level is applied to all survivors when at most this many, else to the best.
+        The level is applied to every reported survivor when at most this many are
+        reported, else to the best-ranked.
     strengthen_during : int or None
         During the first ``strengthen_during`` decisions (None: all), a node that would
         branch is narrowed to ``lp`` first (briefly, whatever ``consistency``), so that
@@ -309,6 +366,12 @@ def solve_unknown(
         Narrow the window of each decided pose in that pose's frame, where relative
         geometry is tight although absolute boxes are wide (:mod:`.local`); off only to
         measure what it prunes.
+    rank : callable, optional
+        Called with the survivors' report at ``hull`` (a :class:`Solution`) before the
+        stronger level: it may order it and put unreported survivors in it (see
+        :data:`Rank`); the stronger level then follows its order. Without it, the report
+        is ranked by fewest outliers, fewest landmarks, then smallest boxes, and
+        ``Solution.unreported`` holds the other survivors' assignments.
 
     Returns
     -------
@@ -338,7 +401,7 @@ def solve_unknown(
     unexplored = [n.decisions() for n in outcome.unexplored]
     return finish_search(
         log, explorer, tally, outcome.survivors, unexplored, outcome.stop_reason,
-        consistency, strengthen_limit, progress, start, messages,
+        consistency, strengthen_limit, progress, start, messages, rank=rank,
     )  # fmt: skip
 
 
@@ -355,10 +418,11 @@ def finish_search(
     start: float,
     messages: list[str],
     refute: Refute = refute_by_bisection,
+    rank: Rank | None = None,
 ) -> Solution:
-    """What follows the search, wherever it ran: the survivors' bisection and stronger
-    level, the reported hypotheses, the summary, the statistics and the account of a
-    budget stop.
+    """What follows the search, wherever it ran: the survivors' bisection, their ranking
+    (``rank``, when given), the stronger level in that order, the reported hypotheses,
+    the summary, the statistics and the account of a budget stop.
 
     ``found`` are the best-ranked survivors (nodes of ``explorer``), ``explorer.stats``
     counts the whole search, ``unexplored`` names the subtrees left by a budget stop
@@ -388,32 +452,44 @@ def finish_search(
             f"{len(found)} survivors after it): every part of {whose} {boxes} contracts to "
             "empty"
         )
-    survivors, level = _strengthen_survivors(
-        explorer, survivors, consistency, strengthen_limit, messages
-    )
     alive = {tuple(n.decisions()) for n in survivors}
     for node in found:
-        if tuple(node.decisions()) not in alive:  # refuted by the stronger level
-            tally.discard(node)  # (or by bisection)
+        if tuple(node.decisions()) not in alive:  # refuted by bisection
+            tally.discard(node)
             stats.survivors -= 1
-    hypotheses = sorted((_hypothesis(explorer, n) for n in survivors), key=lambda h: h.rank_key)
+    report: list[Entry] = sorted(
+        ((_hypothesis(explorer, n), n) for n in survivors), key=lambda r: r[0].rank_key
+    )
+    ranked = Solution([h for h, _ in report], unreported=_unreported(tally, problem, report))
+    named = named_landmarks(log)  # the names the ranking gives them (display_names)
+    tallied = {tuple(display_names(a, named)): a for a in ranked.unreported}
+    if rank is not None and (len(report) > 1 or ranked.unreported):
+        node_of = {id(h): n for h, n in report}
+        rank(ranked)
+        report = [(h, node_of.get(id(h))) for h in ranked.hypotheses]
+        ranked.unreported = []  # used
+    report, refuted, level = _strengthen_report(
+        explorer, report, consistency, strengthen_limit, messages,
+        lambda h: solve_labelled(
+            log, h.assignment, consistency, explorer.graph.rtol, explorer.deadline
+        ),
+    )  # fmt: skip
+    for h, node in refuted:  # by the stronger level
+        if node is None:
+            tally.discard_assignment(tallied[tuple(h.assignment)])
+        else:
+            tally.discard(node)
+        stats.survivors -= 1
+    hypotheses = sorted((h for h, _ in report), key=lambda h: h.rank_key)
+    messages.extend(ranked.messages)
     if stats.survivors > len(found):
         messages.append(
             f"{stats.survivors} hypotheses survived; the {len(hypotheses)} best-ranked are "
             "reported (raise --max-hypotheses to see more)"
         )
     correspondence = None
-    unreported: list[list[str]] = []
     if hypotheses or stats.survivors:  # survivors beyond the report still count
         kept = tally.kept()
-        if stats.survivors > len(hypotheses):
-            named = set(problem.named)
-            shown = {tuple(partition(h.assignment, named)) for h in hypotheses}
-            for a in kept:
-                if len(unreported) >= MAX_UNREPORTED:
-                    break
-                if tuple(partition(a, named)) not in shown:
-                    unreported.append(a)
         summary = summarize(kept, set(problem.named), tally.poses())
         messages.append(describe(summary, stats.survivors, complete, len(kept)))
         correspondence = {
@@ -441,6 +517,7 @@ def finish_search(
         poses=len(problem.pose_x),
         observations=problem.n_observations,
         hypotheses=len(hypotheses),
+        **ranked.statistics,
     )
     if progress is not None and complete:
         progress(1000, 1000)
@@ -451,11 +528,11 @@ def finish_search(
         hypotheses=hypotheses,
         complete=complete,
         statistics=statistics,
-        timings={"solve_s": time.perf_counter() - start},
+        timings={"solve_s": time.perf_counter() - start, **ranked.timings},
         log_path=log.path,
         consistency=level if hypotheses else consistency,
         messages=messages,
         correspondence=correspondence,
         outliers=outliers,
-        unreported=unreported,
+        unreported=ranked.unreported,
     )

@@ -77,6 +77,14 @@ class Tally:
         if where is not None:
             self.assignments[where] = None
 
+    def discard_assignment(self, assignment: list[str]) -> None:
+        """Forget a survivor given by its assignment as tallied (one the search did not keep
+        as a node), proven impossible after the search."""
+        for k, tallied in enumerate(self.assignments):
+            if tallied == assignment:
+                self.assignments[k] = None
+                return
+
     def kept(self) -> list[list[str]]:
         """The assignments of the survivors not discarded."""
         return [a for a in self.assignments if a is not None]

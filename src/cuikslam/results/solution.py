@@ -128,7 +128,7 @@ class Solution:
     """Unknown correspondence: the assignments of survivors the search found but did not
     report in detail (the first ``MAX_UNREPORTED`` of them; never written to files), from
     which :func:`~cuikslam.hypotheses.witness.fit_hypotheses` reports the best-fitting;
-    :func:`~cuikslam.solver.solve` empties it once used."""
+    empty once a search's ``rank`` used it (as in :func:`~cuikslam.solver.solve`)."""
 
     @property
     def best(self) -> Hypothesis:

@@ -29,6 +29,7 @@ import numpy as np
 
 from cuikslam.budget import OutOfTime, blas_single_thread, expired
 from cuikslam.hypotheses.witness.find import (
+    CENTRE_TOLERANCE,
     WitnessStatistics,
     _least_squares,
     _Meter,
@@ -50,9 +51,6 @@ the Woods window it stops after 8 from the boxes' centres, 5 from a neighbour's
 minimiser)."""
 FIT_MAX_HYPOTHESES = 1000
 """Hypotheses fitted at most, in rank order (the rest rank by box size after them)."""
-FIT_TOLERANCE = 1e-5
-"""scipy's tolerances on the cost, the step and the gradient: a ranking needs no more (the
-witness search uses 1e-14; on Lost in the Woods the costs agree with 1e-8's to 1e-3)."""
 
 
 def fit_cost(
@@ -108,7 +106,7 @@ def fit_cost(
         with blas_single_thread(), np.errstate(all="ignore"):
             z = _least_squares(
                 on_free, z0, meter, max_evaluations, free, (lb, ub),
-                tr_solver=tr_solver_for(len(z0)), tol=FIT_TOLERANCE,
+                tr_solver=tr_solver_for(len(z0)), tol=CENTRE_TOLERANCE,
             )  # fmt: skip
     except _OutOfWork:  # counted one evaluation past the limit: keep the start's cost
         z = z0
@@ -246,6 +244,6 @@ def _promote(
         solution.messages.append(
             f"{promoted} survivors the search had not kept for the report fit the readings "
             "better than reported ones and are reported in their place (their boxes from a "
-            "known-correspondence solve at 'hull')"
+            "known-correspondence solve of the log labelled by their assignment)"
         )
     return promoted
