@@ -24,10 +24,12 @@ from cuikslam.results.solution import NOT_REFUTED, PROVEN, Solution
 
 FIRST_QUOTA = 64
 """Residual evaluations each start may use in the first round of :func:`certify` when
-several hypotheses share it (doubled every round): the hypotheses proven at once are not
-kept waiting behind one that is hard to prove. On the Lost in the Woods window (201 poses,
-50 ms an evaluation) most survivors were proven within 30-60 evaluations, while some use
-hundreds without success."""
+several hypotheses share it: the hypotheses proven at once are not kept waiting behind one
+that is hard to prove. On the Lost in the Woods window (201 poses, 50 ms an evaluation)
+most survivors were proven within 30-60 evaluations, while some use hundreds without
+success. The starts cut short run again, whole, in the next round: doubling the quota
+round after round instead cost up to twice the evaluations on dense worlds whose
+hypotheses need 200-500, and resuming a cut start from its best point saved nothing."""
 
 
 def certify(
@@ -56,12 +58,11 @@ def certify(
     The hypotheses share the budget round-robin: every one gets its first two starts (most
     consistent hypotheses are proven by the first), then the unproven ones get random
     starts in growing rounds. While several are open, a start may use at most
-    ``FIRST_QUOTA`` residual evaluations in the first round, twice as many in each next
-    one (a start cut short is tried again in the next round), so that one hard hypothesis
-    does not hold back the easy ones; this goes on until each is proven, has used
-    ``max_evaluations`` residual evaluations (or ``2 + restarts`` starts, when given), all
-    of them together have used ``max_total_evaluations`` (checked between rounds), or
-    ``deadline`` (a
+    ``FIRST_QUOTA`` residual evaluations in the first round (a start cut short runs again,
+    whole, in the next one), so that one hard hypothesis does not hold back the easy
+    ones; this goes on until each is proven, has used ``max_evaluations`` residual
+    evaluations (or ``2 + restarts`` starts, when given), all of them together have used
+    ``max_total_evaluations`` (checked between rounds), or ``deadline`` (a
     :func:`time.perf_counter` value) passes. Returns the search's
     :class:`WitnessStatistics`; they are also recorded in ``solution.statistics``
     (``proven_hypotheses``, ``undecided_hypotheses``, ``witness_starts``,
@@ -80,7 +81,7 @@ def certify(
         searches.append(
             WitnessSearch(model, poses_box, landmarks_box, seed, deadline, max_evaluations, stats)
         )
-    batch, quota = 2, FIRST_QUOTA
+    batch, quota = 2, FIRST_QUOTA  # the first round only: later ones run whole starts
     while True:
         open_ = [s for s in searches if not s.finished and (most is None or s.tried < most)]
         if not open_:
@@ -93,7 +94,7 @@ def certify(
                 batch if most is None else min(batch, most - search.tried),
                 quota if len(open_) > 1 else None,
             )
-        batch, quota = min(2 * batch, 32), 2 * quota
+        batch, quota = min(2 * batch, 32), None
     proven = 0
     for h, search in zip(chosen, searches, strict=True):
         if search.box is None:
