@@ -322,6 +322,12 @@ class WitnessSearch:
         runs out, which finishes the search). With ``quota``, a start that needs more
         residual evaluations than that is abandoned and the run ends: the next run tries
         that start again (from its beginning; a random one is drawn anew)."""
+        try:
+            self._run(starts, quota)
+        finally:
+            self.model.release()
+
+    def _run(self, starts: int, quota: int | None) -> None:
         stats, model, meter = self.stats, self.model, self.meter
         with blas_single_thread(), np.errstate(all="ignore"):
             for _ in range(starts):

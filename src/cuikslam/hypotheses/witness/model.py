@@ -369,6 +369,11 @@ class HypothesisModel(Starts, Residuals):
         self._memo = (key, P, J)
         return P, J
 
+    def release(self) -> None:
+        """Forget the memoised kinematics: a dense Jacobian, about 12 MB at 200 poses,
+        which :func:`~.certification.certify` would otherwise keep for every hypothesis."""
+        self._memo = None
+
     def poses(self, p: np.ndarray, jacobian: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
         """Forward kinematics: the robot poses (n, 3) and, optionally, their Jacobian
         (n, 3, n_params) (views of :meth:`frames`: callers must not modify them)."""
