@@ -196,3 +196,24 @@ def test_a_promoted_survivor_gets_the_stronger_level_from_its_labelled_log() -> 
     [alone] = solve(labelled, certify_limit=0, time_budget=None, consistency="lp").hypotheses
     assert np.array_equal(h.poses, alone.poses)
     assert np.array_equal(h.landmarks, alone.landmarks)
+
+
+def test_the_report_is_narrowed_on_labelled_logs_unless_there_is_negative_information(
+    monkeypatch,
+) -> None:
+    """Without a sensor record a hypothesis' labelled log holds the constraints of its node
+    in the search, so the stronger level runs there; with one, on the node, whose UNSEEN
+    factors the labelled log lacks."""
+    from cuikslam.hypotheses.explorer import Explorer
+
+    on_nodes = []
+    narrow = Explorer.strengthen_node
+    monkeypatch.setattr(
+        Explorer, "strengthen_node", lambda self, *a: on_nodes.append(1) or narrow(self, *a)
+    )
+    sensor = '{"type": "sensor", "max_range": 1.0}'  # the doors are out of range
+    for lines, nodes in [(NEAR_CONTRADICTION, 0), ([sensor, *NEAR_CONTRADICTION], 2)]:
+        on_nodes.clear()
+        solution = solve_unknown(parse_log_lines(lines), max_hypotheses=2, consistency="lp")
+        assert [h.consistency for h in solution.hypotheses] == ["lp", "lp"]
+        assert len(on_nodes) == nodes
