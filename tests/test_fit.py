@@ -217,3 +217,25 @@ def test_the_report_is_narrowed_on_labelled_logs_unless_there_is_negative_inform
         solution = solve_unknown(parse_log_lines(lines), max_hypotheses=2, consistency="lp")
         assert [h.consistency for h in solution.hypotheses] == ["lp", "lp"]
         assert len(on_nodes) == nodes
+
+
+def test_a_declared_outlier_among_named_readings_never_becomes_a_hard_constraint() -> None:
+    """A log that declares outliers: its named readings may be outliers too, which a
+    labelled log would make hard constraints. So no survivor is reported in place of
+    another with a labelled log's boxes, and the stronger level runs on the search's
+    nodes: the tree's box holds its truth although its one reading is 1 m off."""
+    tree = (
+        '{"type": "observation", "pose": 0, "landmark": "T", "class": "tree", '
+        '"range": [4.0, 4.1], "bearing": [1.5, 1.6]}'
+    )  # the tree stands at (0, 3): 3 m away, not 4
+    lines = [*NEAR_CONTRADICTION, tree, '{"type": "outliers", "at_most": 1}']
+    for options in [{"max_hypotheses": 1}, {"max_hypotheses": 2}]:
+        solution = solve(
+            parse_log_lines(lines), certify_limit=0, time_budget=None, consistency="lp",
+            **options,
+        )  # fmt: skip
+        assert solution.hypotheses
+        assert solution.statistics.get("promoted_hypotheses", 0) == 0
+        for h in solution.hypotheses:
+            (x, y) = h.landmarks[h.landmark_ids.index("T")]
+            assert x[0] <= 0.0 <= x[1] and y[0] <= 3.0 <= y[1]

@@ -187,7 +187,9 @@ def solve(
                 log,
                 report,
                 portion(deadline, FIT_SHARE),
-                known=partial(solve_labelled, log, rtol=options.rtol),
+                known=None  # a labelled log would make named outliers hard constraints
+                if log.outlier_bounds
+                else partial(solve_labelled, log, rtol=options.rtol),
             ),
         )
     else:

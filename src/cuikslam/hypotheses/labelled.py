@@ -5,10 +5,11 @@ The search narrows its survivors as nodes of its tree. A survivor it did not kee
 report, and that the ranking then reports (:func:`~.witness.fit.fit_hypotheses`), has no
 node: its boxes come from this labelled log instead. The labelled log keeps the odometry,
 the observations, the priors and the class regions; it leaves out the observations the
-hypothesis takes as outliers, the ``outliers`` declaration, the sensor's negative
-information and the classes' separations and counts. Fewer constraints only widen the
-boxes, so they hold the hypothesis' worlds all the same, and an empty box is still a proof
-that the hypothesis is impossible.
+hypothesis takes as outliers, the sensor's negative information and the classes'
+separations and counts. Fewer constraints only widen the boxes, so they hold the
+hypothesis' worlds all the same, and an empty box is still a proof that the hypothesis is
+impossible. A log that declares outliers is refused: its named observations may be
+outliers too, and the labelled log would make them hard constraints.
 """
 
 from __future__ import annotations
@@ -48,7 +49,13 @@ def hypothesis_from_graph(
 
 def labelled_log(log: Log, assignment: list[str]) -> Log:
     """``log`` with the i-th observation labelled ``assignment[i]``, the observations it
-    takes as outliers (and the ``outliers`` declaration) left out."""
+    takes as outliers left out; ValueError for a log that declares outliers (see the
+    module's docstring)."""
+    if log.outlier_bounds:
+        raise ValueError(
+            "a log that declares outliers has no labelled log: its named "
+            "observations may be outliers too"
+        )
     drop = {i for i, a in enumerate(assignment) if a == OUTLIER}
     reduced = log_without_observations(log, drop)
     labels = iter([a for a in assignment if a != OUTLIER])

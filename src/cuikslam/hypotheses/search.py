@@ -275,8 +275,9 @@ def _strengthen_report(
     """Narrow the reported hypotheses to ``level`` in report order: all of them when at
     most ``limit`` are reported, else the first until one is not refuted. A hypothesis
     is narrowed on its labelled log (``labelled``, :func:`.labelled.solve_labelled`) when
-    it has no node (the ranking put it in the report) or the log has no negative
-    information: the labelled log then holds the same constraints, without the search's
+    it has no node (the ranking put it in the report) or the log has neither negative
+    information nor an outliers declaration: the labelled log then holds the same
+    constraints, without the search's
     unused landmark slots (on Lost in the Woods, 201 poses, 4,541 variables instead of
     6,645: ``lp`` in 6 s instead of 43 s, the same boxes to 1 %). Otherwise it is narrowed
     as a node of the search, with its negative information. Returns the report, the
@@ -290,18 +291,21 @@ def _strengthen_report(
             f"one of them only, the first in rank order (to all when at most {limit}; raise "
             "--strengthen-limit); the others' boxes are at least hull-consistent"
         )
+    problem = explorer.problem
+    same = not problem.has_sensor and problem.outlier is None  # the labelled log's constraints
     refuted: list[Entry] = []
     reached = [] if every else ["hull"]
     out: list[Entry] = []
     attempts, done = 0, False
     for h, node in report:
-        if not (every or (not done and attempts < BEST_ATTEMPTS)):
+        wanted = every or (not done and attempts < BEST_ATTEMPTS)
+        if not wanted or (node is None and problem.outlier is not None):
             reached.append(h.consistency)
             out.append((h, node))
             continue
         attempts += 1
-        if node is None or not explorer.problem.has_sensor:
-            better = labelled(h)  # with no negative information, the same constraints
+        if node is None or same:
+            better = labelled(h)
         else:
             narrowed = explorer.strengthen_node(node, level)
             better = None if narrowed is None else _hypothesis(explorer, narrowed)
