@@ -15,7 +15,11 @@ from typing import Any
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import STRENGTHEN_SHARE, deadline_after, portion
 from cuikslam.graph.kinematic_graph import KinematicGraph
-from cuikslam.hypotheses.labelled import hypothesis_from_graph, solve_labelled
+from cuikslam.hypotheses.labelled import (
+    has_labelled_logs,
+    hypothesis_from_graph,
+    solve_labelled,
+)
 from cuikslam.hypotheses.search import solve_unknown
 from cuikslam.hypotheses.witness import certify, fit_hypotheses
 from cuikslam.log.records import Log
@@ -187,9 +191,9 @@ def solve(
                 log,
                 report,
                 portion(deadline, FIT_SHARE),
-                known=None  # a labelled log would make named outliers hard constraints
-                if log.outlier_bounds
-                else partial(solve_labelled, log, rtol=options.rtol),
+                known=partial(solve_labelled, log, rtol=options.rtol)
+                if has_labelled_logs(log)
+                else None,
             ),
         )
     else:

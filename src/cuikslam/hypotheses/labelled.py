@@ -25,7 +25,13 @@ from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
 from cuikslam.outliers import log_without_observations
 from cuikslam.results.solution import OUTLIER, Hypothesis
 
-__all__ = ["hypothesis_from_graph", "labelled_log", "solve_labelled"]
+__all__ = ["has_labelled_logs", "hypothesis_from_graph", "labelled_log", "solve_labelled"]
+
+
+def has_labelled_logs(log: Log) -> bool:
+    """Whether the hypotheses of ``log`` have labelled logs: not when it declares outliers
+    (see the module's docstring)."""
+    return not log.outlier_bounds
 
 
 def hypothesis_from_graph(
@@ -51,7 +57,7 @@ def labelled_log(log: Log, assignment: list[str]) -> Log:
     """``log`` with the i-th observation labelled ``assignment[i]``, the observations it
     takes as outliers left out; ValueError for a log that declares outliers (see the
     module's docstring)."""
-    if log.outlier_bounds:
+    if not has_labelled_logs(log):
         raise ValueError(
             "a log that declares outliers has no labelled log: its named "
             "observations may be outliers too"

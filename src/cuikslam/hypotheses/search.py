@@ -29,7 +29,7 @@ from cuikslam.budget import portion
 from cuikslam.hypotheses._shared import SharedGraph
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer
-from cuikslam.hypotheses.labelled import solve_labelled
+from cuikslam.hypotheses.labelled import has_labelled_logs, solve_labelled
 from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.problem import Problem, build_problem
 from cuikslam.hypotheses.tally import Tally
@@ -39,12 +39,7 @@ from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
 from cuikslam.options import SolveOptions
 from cuikslam.outliers import search_outliers_json
-from cuikslam.results.association import (
-    anonymous_names,
-    display_names,
-    named_landmarks,
-    partition,
-)
+from cuikslam.results.association import anonymous_names, partition
 from cuikslam.results.solution import OUTLIER as OUTLIER_MARK
 from cuikslam.results.solution import Hypothesis, Solution
 from cuikslam.results.summary import describe, summarize, summary_to_json
@@ -270,18 +265,17 @@ def _strengthen_report(
     level: str,
     limit: int,
     messages: list[str],
-    labelled: Callable[[Hypothesis], Hypothesis | None],
+    labelled: Callable[[Hypothesis], Hypothesis | None] | None,
 ) -> tuple[list[Entry], list[Entry], str]:
     """Narrow the reported hypotheses to ``level`` in report order: all of them when at
     most ``limit`` are reported, else the first until one is not refuted. A hypothesis
-    is narrowed on its labelled log (``labelled``, :func:`.labelled.solve_labelled`) when
-    it has no node (the ranking put it in the report) or the log has neither negative
-    information nor an outliers declaration: the labelled log then holds the same
-    constraints, without the search's
-    unused landmark slots (on Lost in the Woods, 201 poses, 4,541 variables instead of
-    6,645: ``lp`` in 6 s instead of 43 s, the same boxes to 1 %). Otherwise it is narrowed
-    as a node of the search, with its negative information. Returns the report, the
-    entries refuted, and the level all of them reach."""
+    is narrowed on its labelled log (``labelled``, :func:`.labelled.solve_labelled`; None
+    for a log without labelled logs) when it has no node (the ranking put it in the
+    report) or the log has no negative information: the labelled log then holds the same
+    constraints, without the search's unused landmark slots (on Lost in the Woods, 201
+    poses, 4,541 variables instead of 6,645: ``lp`` in 6 s instead of 43 s, the same
+    boxes to 1 %). Otherwise it is narrowed as a node of the search. Returns the report,
+    the entries refuted, and the level all of them reach."""
     if level == "hull" or not report:
         return report, [], level
     every = len(report) <= limit
@@ -291,20 +285,19 @@ def _strengthen_report(
             f"one of them only, the first in rank order (to all when at most {limit}; raise "
             "--strengthen-limit); the others' boxes are at least hull-consistent"
         )
-    problem = explorer.problem
-    same = not problem.has_sensor and problem.outlier is None  # the labelled log's constraints
+    same = labelled is not None and not explorer.problem.has_sensor  # the same constraints
     refuted: list[Entry] = []
     reached = [] if every else ["hull"]
     out: list[Entry] = []
     attempts, done = 0, False
     for h, node in report:
         wanted = every or (not done and attempts < BEST_ATTEMPTS)
-        if not wanted or (node is None and problem.outlier is not None):
+        if not wanted or (node is None and labelled is None):
             reached.append(h.consistency)
             out.append((h, node))
             continue
         attempts += 1
-        if node is None or same:
+        if labelled is not None and (node is None or same):
             better = labelled(h)
         else:
             narrowed = explorer.strengthen_node(node, level)
@@ -468,22 +461,23 @@ def finish_search(
         ((_hypothesis(explorer, n), n) for n in survivors), key=lambda r: r[0].rank_key
     )
     ranked = Solution([h for h, _ in report], unreported=_unreported(tally, problem, report))
-    named = named_landmarks(log)  # the names the ranking gives them (display_names)
-    tallied = {tuple(display_names(a, named)): a for a in ranked.unreported}
     if rank is not None and (len(report) > 1 or ranked.unreported):
         node_of = {id(h): n for h, n in report}
         rank(ranked)
         report = [(h, node_of.get(id(h))) for h in ranked.hypotheses]
         ranked.unreported = []  # used
+    rtol, deadline = explorer.graph.rtol, explorer.deadline
+    labelled = (
+        (lambda h: solve_labelled(log, h.assignment, consistency, rtol, deadline))
+        if has_labelled_logs(log)
+        else None
+    )
     report, refuted, level = _strengthen_report(
-        explorer, report, consistency, strengthen_limit, messages,
-        lambda h: solve_labelled(
-            log, h.assignment, consistency, explorer.graph.rtol, explorer.deadline
-        ),
-    )  # fmt: skip
+        explorer, report, consistency, strengthen_limit, messages, labelled
+    )
     for h, node in refuted:  # by the stronger level
         if node is None:
-            tally.discard_assignment(tallied[tuple(h.assignment)])
+            tally.discard_assignment(h.assignment)
         else:
             tally.discard(node)
         stats.survivors -= 1

@@ -11,6 +11,7 @@ import numpy as np
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.tree import Node
+from cuikslam.results.association import partition
 from cuikslam.results.solution import OUTLIER as OUTLIER_MARK
 
 __all__ = ["MAX_TALLIED", "Tally"]
@@ -78,10 +79,12 @@ class Tally:
             self.assignments[where] = None
 
     def discard_assignment(self, assignment: list[str]) -> None:
-        """Forget a survivor given by its assignment as tallied (one the search did not keep
-        as a node), proven impossible after the search."""
+        """Forget a survivor given by its assignment (one the search did not keep as a
+        node; its new landmarks named in any way), proven impossible after the search."""
+        named = set(self.explorer.problem.named)
+        wanted = partition(assignment, named)
         for k, tallied in enumerate(self.assignments):
-            if tallied == assignment:
+            if tallied is not None and partition(tallied, named) == wanted:
                 self.assignments[k] = None
                 return
 
