@@ -167,6 +167,7 @@ def _least_squares(
     (:func:`~._levenberg.bounded_least_squares`) or scipy's trust-region solver, ``tol``
     the tolerances (cost, step, gradient)."""
     memo: dict[bytes, tuple[np.ndarray, Any]] = {}
+    all_columns = bool(np.all(columns))
 
     def both(z: np.ndarray) -> tuple[np.ndarray, Any]:
         key = z.tobytes()
@@ -176,7 +177,7 @@ def _least_squares(
             if probe is not None:
                 probe(z)
             r, J = residuals(z, jacobian=True)
-            memo[key] = (finite(r), finite(J[:, columns], nan=0.0))
+            memo[key] = (finite(r), finite(J if all_columns else J[:, columns], nan=0.0))
         return memo[key]
 
     if tr_solver == "normal":
