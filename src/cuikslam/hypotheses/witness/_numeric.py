@@ -68,8 +68,8 @@ def finite(values: np.ndarray, nan: float = BIG) -> np.ndarray:
     values = np.asarray(values, dtype=float)
     if values.size == 0 or (values.min() >= -BIG and values.max() <= BIG):  # NaN fails both
         return values
-    out = np.nan_to_num(values, nan=nan, posinf=BIG, neginf=-BIG)
-    return np.clip(out, -BIG, BIG)
+    out = np.nan_to_num(values, nan=nan, posinf=BIG, neginf=-BIG)  # a copy
+    return np.clip(out, -BIG, BIG, out=out)
 
 
 def cos_sin(angle: float) -> tuple[float, float]:
