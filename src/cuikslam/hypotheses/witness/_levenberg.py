@@ -29,6 +29,7 @@ _LAM_LIMITS = (1e-15, 1e15)
 """Beyond the upper limit no step of the model decreases the cost: the search ends."""
 
 
+@np.errstate(over="ignore", invalid="ignore")  # huge residuals only make steps rejected
 def bounded_least_squares(
     residuals: ResidualsAndJacobian,
     z0: np.ndarray,
@@ -50,19 +51,7 @@ def bounded_least_squares(
     >>> bounded_least_squares(f, np.zeros(2), lb, ub, max_nfev=50, tol=1e-12)
     array([3., 0.])
     """
-    with np.errstate(over="ignore", invalid="ignore"):  # huge residuals only reject steps
-        return _minimise(residuals, np.asarray(z0, dtype=float), lb, ub, max_nfev, tol)
-
-
-def _minimise(
-    residuals: ResidualsAndJacobian,
-    z0: np.ndarray,
-    lb: np.ndarray,
-    ub: np.ndarray,
-    max_nfev: int,
-    tol: float,
-) -> np.ndarray:
-    z = np.clip(z0, lb, ub)
+    z = np.clip(np.asarray(z0, dtype=float), lb, ub)
     r, J = residuals(z)
     nfev = 1
     cost = 0.5 * float(r @ r)
