@@ -265,3 +265,38 @@ def test_truth_check_and_evaluate_take_the_true_outliers() -> None:
     assert verdict.ok and "survived" in verdict.lines[0], verdict.lines
     ev = evaluate(solution, truth, outside=outside)
     assert solution.hypotheses[ev.true_rank - 1].outliers == [1]
+
+
+def test_no_witness_proves_a_hypothesis_with_more_outliers_than_declared() -> None:
+    """At most 1 outlier per pose; the named sighting of A from pose 0 is proven an outlier
+    (3 m too far). A hypothesis that also takes the other pose-0 sighting as an outlier has
+    2 at pose 0: no world meets the declaration, so none may be proven consistent (it was,
+    by a witness that left out both)."""
+    from cuikslam.outliers import check_declaration
+    from cuikslam.solver import solve
+
+    log = parse_log_lines(
+        [
+            '{"type": "outliers", "at_most": 1, "window": 1}',
+            '{"type": "class", "class": "c", "at_most": 1}',
+            '{"type": "landmark", "id": "A", "class": "a", "x": [4.99, 5.01], "y": [-0.01, 0.01]}',
+            '{"type": "prior", "pose": 0, "x": [0, 0], "y": [0, 0], "theta": [0, 0]}',
+            '{"type": "observation", "pose": 0, "class": "a", "landmark": "A", '
+            '"range": [8, 8.1], "bearing": [-0.01, 0.01]}',
+            '{"type": "observation", "pose": 0, "class": "c", "range": [3.5, 4.5], '
+            '"bearing": [1.4, 1.75]}',
+            '{"type": "odometry", "from": 0, "to": 1, "turn": [0, 0], "distance": [2, 2]}',
+            '{"type": "observation", "pose": 1, "class": "c", "range": [3, 3.001], '
+            '"bearing": [-1.0, -0.999]}',
+        ],
+        path="window.jsonl",
+    )
+    solution = solve(log, time_budget=30)
+    proven_outliers = [p["observation"] for p in solution.outliers["proven"]]
+    assert proven_outliers == [0]
+    too_many = [h for h in solution.hypotheses if h.outliers == [1]]
+    assert len(too_many) == 1  # the hypothesis that breaks the declaration is reported
+    assert too_many[0].status != "proven consistent"
+    for h in solution.hypotheses:
+        if h.status == "proven consistent":
+            assert check_declaration(log, sorted(set(proven_outliers) | set(h.outliers)))[0]

@@ -256,12 +256,21 @@ def certify_without_outliers(
     declaration: the hypothesis becomes *proven consistent*, its witness that point. The
     witness search (``certify``, :func:`cuikslam.hypotheses.witness.certify`) runs on the
     log without the proven outliers; an unproven outlier left in it makes the search fail,
-    never a wrong proof. Not tried when a landmark is seen only by proven outliers.
+    never a wrong proof. Not tried when a landmark is seen only by proven outliers, nor when
+    the proven outliers and the hypothesis' own together break the declaration (in all or in
+    some block of poses): a world without all of them would not meet it.
     """
     if not solution.hypotheses or solution.outliers is None:
         return
     best = solution.hypotheses[0]
     proven = {p["observation"] for p in solution.outliers["proven"]} | set(best.outliers)
+    if not check_declaration(log, sorted(proven))[0]:  # a witness without them proves nothing
+        solution.messages.append(
+            f"not certified: the {len(best.outliers)} observation(s) the best hypothesis takes "
+            "as outliers and the proven ones are more than the outliers record allows, so it "
+            "stays 'not refuted'"
+        )
+        return
     reduced = log_without_observations(log, proven)
     trial = replace(best, assignment=[a for i, a in enumerate(best.assignment) if i not in proven])
     named = set(trial.assignment) | {p.landmark for p in reduced.landmark_priors}
