@@ -129,6 +129,37 @@ def test_outlier_named_landmark_with_unknown_correspondence_exit_2(tmp_path: Pat
     assert_input_error(result, "trip.jsonl:4:", 'landmark id "outlier" is reserved')
 
 
+def test_outlier_named_landmark_is_refused_in_any_log(tmp_path: Path) -> None:
+    """Without an outliers record and with known correspondence too: the witness search and
+    the fit leave out observations marked "outlier", so a landmark of that name was proven
+    consistent without its constraints (found by an adversarial helper)."""
+    _write(
+        tmp_path,
+        PRIOR,
+        '{"type": "observation", "pose": 0, "class": "post", "range": [2, 2.1], '
+        '"bearing": [0, 0.1], "landmark": "A"}',
+        '{"type": "landmark", "id": "outlier", "class": "post", "x": [1, 2], "y": [0, 1]}',
+    )
+    result = run("solve", "trip.jsonl", "--json", "out.json", cwd=tmp_path)
+    assert_input_error(result, "trip.jsonl:3:", 'landmark id "outlier" is reserved')
+    assert not (tmp_path / "out.json").exists()
+
+
+def test_a_log_built_in_code_with_the_reserved_id_is_refused_by_solve() -> None:
+    from cuikslam.log.records import LandmarkPrior, Log, PosePrior
+    from cuikslam.solver import solve
+
+    log = Log(
+        records=[
+            PosePrior(pose=0, x=(0.0, 0.0), y=(0.0, 0.0), theta=(0.0, 0.0), line=1),
+            LandmarkPrior(landmark="outlier", landmark_class="post", x=(1.0, 2.0),
+                          y=(0.0, 1.0), line=2),
+        ]
+    )  # fmt: skip
+    with pytest.raises(InputFileError, match='landmark id "outlier" is reserved'):
+        solve(log, time_budget=5)
+
+
 def test_a_bad_outliers_record_exits_2(tmp_path: Path) -> None:
     _write(tmp_path, PRIOR, '{"type": "outliers", "at_most": -2}')
     result = run("solve", "trip.jsonl", cwd=tmp_path)

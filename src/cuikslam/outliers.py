@@ -17,7 +17,6 @@ from typing import Any
 
 import numpy as np
 
-from cuikslam.errors import InputFileError
 from cuikslam.graph.encoding import KIND, OBSERVATION
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.log.records import (
@@ -26,7 +25,7 @@ from cuikslam.log.records import (
     OutlierBound,
 )
 from cuikslam.narrowing.outliers import NO_LIMIT, OutlierScope, RelaxedReport
-from cuikslam.results.solution import OUTLIER, Hypothesis, Solution
+from cuikslam.results.solution import Hypothesis, Solution
 
 __all__ = [
     "LISTED",
@@ -39,33 +38,11 @@ __all__ = [
     "outlier_messages",
     "outlier_scope",
     "outliers_to_json",
-    "reject_unknown",
     "search_outliers_json",
 ]
 
 LISTED = 10
 """Proven outliers named in the messages (the result JSON lists every one)."""
-
-
-def reject_unknown(log: Log) -> None:
-    """Refuse a log with unknown correspondence and an ``outliers`` record that names a
-    landmark ``"outlier"``: in its hypotheses' assignments that word marks an outlier.
-
-    Raises
-    ------
-    InputFileError
-        Naming the log and the line of the first record naming that landmark.
-    """
-    if not log.outlier_bounds or not log.has_unknown_correspondence:
-        return
-    for record in log.records:
-        if getattr(record, "landmark", None) == OUTLIER:
-            raise InputFileError(
-                log.path,
-                getattr(record, "line", 0),
-                f'landmark id "{OUTLIER}" is reserved in a log with an outliers record and '
-                "unknown correspondence (assignments mark outliers with it): rename it",
-            )
 
 
 def search_outliers_json(

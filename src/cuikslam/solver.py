@@ -22,6 +22,7 @@ from cuikslam.hypotheses.labelled import (
 )
 from cuikslam.hypotheses.search import solve_unknown
 from cuikslam.hypotheses.witness import certify, fit_hypotheses
+from cuikslam.log.reader import reject_reserved_landmark_id
 from cuikslam.log.records import Log
 from cuikslam.narrowing.consistency import StrengthenReport, resolve_level, strengthen
 from cuikslam.narrowing.outliers import RelaxedReport, narrow_with_outliers
@@ -33,7 +34,6 @@ from cuikslam.outliers import (
     outlier_messages,
     outlier_scope,
     outliers_to_json,
-    reject_unknown,
 )
 from cuikslam.results.solution import Solution
 
@@ -167,7 +167,7 @@ def solve(
     incomplete search, each with a message in ``Solution.messages``.
     """
     options = (options or SolveOptions()).replace(**overrides)
-    reject_unknown(log)  # the landmark id "outlier" is reserved there
+    reject_reserved_landmark_id(log)  # a log built in code has not met the reader's check
     ensure_round_to_nearest()
     unknown = log.has_unknown_correspondence
     lp = options.consistency.value != "hull" or (unknown and options.strengthen_during != 0)

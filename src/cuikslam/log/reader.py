@@ -17,6 +17,7 @@ from cuikslam._json import loads_object
 from cuikslam.errors import InputFileError
 from cuikslam.log._fields import Problem, record_from_json
 from cuikslam.log.records import (
+    RESERVED_LANDMARK_ID,
     ClassPrior,
     LandmarkPrior,
     Log,
@@ -29,7 +30,26 @@ from cuikslam.log.records import (
     SensorModel,
 )
 
-__all__ = ["parse_log_lines", "read_log_file"]
+__all__ = ["parse_log_lines", "read_log_file", "reject_reserved_landmark_id"]
+
+_RESERVED = (
+    f'landmark id "{RESERVED_LANDMARK_ID}" is reserved (hypotheses\' assignments mark '
+    "outliers with it): rename it"
+)
+
+
+def reject_reserved_landmark_id(log: Log) -> None:
+    """Refuse a log (read from a file or built in code) that names a landmark with the id
+    :data:`~cuikslam.log.records.RESERVED_LANDMARK_ID`.
+
+    Raises
+    ------
+    InputFileError
+        Naming the log and the line of the first record naming that landmark.
+    """
+    for record in log.records:
+        if getattr(record, "landmark", None) == RESERVED_LANDMARK_ID:
+            raise InputFileError(log.path, getattr(record, "line", 0), _RESERVED)
 
 
 def read_log_file(path: str | os.PathLike[str]) -> Log:
@@ -140,6 +160,8 @@ def _check_order(records: list[Record], path: str) -> None:
         raise InputFileError(path, record.line, problem)
 
     def same_class(record: Observation | LandmarkPrior, landmark: str) -> None:
+        if landmark == RESERVED_LANDMARK_ID:
+            fail(record, _RESERVED)
         earlier = landmark_seen.setdefault(landmark, (record.landmark_class, record.line))
         if earlier[0] != record.landmark_class:
             fail(

@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass, field
 
 __all__ = [
+    "RESERVED_LANDMARK_ID",
     "Bounds",
     "ClassPrior",
     "LandmarkPrior",
@@ -27,6 +28,11 @@ __all__ = [
 
 Bounds = tuple[float, float]
 """A closed interval ``(lo, hi)`` with ``lo <= hi``."""
+
+RESERVED_LANDMARK_ID = "outlier"
+"""No landmark may have this id: in a hypothesis' assignment it marks an observation taken
+as an outlier (one that explains nothing), and the witness search, the fit and the labelled
+logs leave such observations out."""
 
 
 @dataclass(frozen=True)

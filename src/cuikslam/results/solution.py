@@ -16,6 +16,7 @@ from fractions import Fraction
 import numpy as np
 
 from cuikslam.interval.angles import angle_in
+from cuikslam.log.records import RESERVED_LANDMARK_ID
 
 __all__ = [
     "NOT_REFUTED",
@@ -32,9 +33,9 @@ PROVEN = "proven consistent"
 """A point satisfying every constraint was found and verified in interval arithmetic."""
 NOT_REFUTED = "not refuted"
 """Narrowing did not prove the hypothesis impossible (nor was a witness verified)."""
-OUTLIER = "outlier"
+OUTLIER = RESERVED_LANDMARK_ID
 """In an assignment: the observation is taken as an outlier (it explains nothing; only with
-an ``outliers`` declaration and unknown correspondence)."""
+an ``outliers`` declaration and unknown correspondence). No landmark may have this id."""
 
 
 @dataclass
