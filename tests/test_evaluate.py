@@ -260,3 +260,39 @@ def test_a_wrong_best_ranked_hypothesis_is_named_as_such(
     assert "the best-ranked, not the true one" in " ".join(out.split())
     assert "miss the truth (of a hypothesis that is not the true one)" in " ".join(out.split())
     assert "the guarantee did not hold" not in out
+
+
+def test_the_pose_hull_is_paired_with_poses_by_id_not_by_first_mention() -> None:
+    """The pose hull is in increasing pose id; a hypothesis lists its poses as they first
+    appear in the log. With pose 5 before pose 1, evaluate paired pose 5's truth with pose
+    1's hull box and reported a failed guarantee (found by an adversarial helper)."""
+    from cuikslam.log import parse_log_lines
+    from cuikslam.simulate.truth import _truth_from_json
+    from cuikslam.solver import solve
+
+    log = parse_log_lines(
+        [
+            '{"type": "prior", "pose": 5, "x": [0, 0], "y": [0, 0], "theta": [0, 0]}',
+            '{"type": "observation", "pose": 5, "class": "a", "range": [2, 2.1], '
+            '"bearing": [0.5, 0.6]}',
+            '{"type": "odometry", "from": 5, "to": 1, "turn": [0, 0], "distance": [3, 3]}',
+            '{"type": "observation", "pose": 1, "class": "a", "range": [1.5, 1.6], '
+            '"bearing": [1.5, 1.7]}',
+        ],
+        path="hull.jsonl",
+    )
+    solution = solve(log, time_budget=10)
+    assert solution.complete and solution.best.pose_ids == [5, 1]
+    truth = _truth_from_json(
+        {
+            "poses": {"5": [0, 0, 0], "1": [3, 0, 0]},
+            "landmarks": {
+                "A": {"class": "a", "x": 1.7476752702219866, "y": 1.0715088193078513},
+                "B": {"class": "a", "x": 2.9547407404330023, "y": 1.549339084714333},
+            },
+            "assignment": ["A", "B"],
+        }
+    )
+    ev = evaluate(solution, truth)
+    assert (ev.hull_checked, ev.hull_inside) == (2, 2)
+    assert ev.guarantee_held is not False

@@ -279,7 +279,7 @@ def evaluate(
         boxes = np.asarray(hull, dtype=float)
         if boxes.shape == (len(best.pose_ids), 3, 2):
             hull_inside = hull_checked = 0
-            for pose_id, box in zip(best.pose_ids, boxes, strict=True):
+            for pose_id, box in zip(sorted(best.pose_ids), boxes, strict=True):  # id order
                 value = truth_of_pose.get(pose_id)
                 if value is not None:
                     hull_checked += 1
