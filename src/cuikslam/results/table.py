@@ -24,10 +24,14 @@ Row = tuple[str, Bounds, Bounds, Bounds | None]
 
 
 def format_bounds(bounds: Bounds | np.ndarray | None, digits: int = 6) -> str:
-    """``[lo, hi]`` with fixed decimals, as in the seed's tables; an em dash for None."""
+    """``[lo, hi]`` with fixed decimals, as in the seed's tables; an em dash for None.
+
+    >>> format_bounds((0.0, -0.0)), format_bounds((1.5, 2.0), digits=2)
+    ('[0.000000, 0.000000]', '[1.50, 2.00]')
+    """
     if bounds is None:
         return "—"
-    lo, hi = float(bounds[0]), float(bounds[1])
+    lo, hi = float(bounds[0]) + 0.0, float(bounds[1]) + 0.0  # + 0.0: no "-0.000000"
     if lo > hi:
         return "∅"
     return f"[{lo:.{digits}f}, {hi:.{digits}f}]"
