@@ -271,7 +271,7 @@ def test_no_witness_proves_a_hypothesis_with_more_outliers_than_declared() -> No
     """At most 1 outlier per pose; the named sighting of A from pose 0 is proven an outlier
     (3 m too far). A hypothesis that also takes the other pose-0 sighting as an outlier has
     2 at pose 0: no world meets the declaration, so none may be proven consistent (it was,
-    by a witness that left out both)."""
+    by a witness that left out both); the next one, which keeps to it, is tried instead."""
     from cuikslam.outliers import check_declaration
     from cuikslam.solver import solve
 
@@ -300,3 +300,6 @@ def test_no_witness_proves_a_hypothesis_with_more_outliers_than_declared() -> No
     for h in solution.hypotheses:
         if h.status == "proven consistent":
             assert check_declaration(log, sorted(set(proven_outliers) | set(h.outliers)))[0]
+    # the best-ranked hypothesis that keeps to the declaration (the true one, which takes
+    # the pose-1 sighting as its outlier) is the one certified, and ranks first once proven
+    assert solution.best.outliers == [2] and solution.best.status == "proven consistent"

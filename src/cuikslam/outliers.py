@@ -226,7 +226,8 @@ def log_without_observations(log: Log, drop: set[int]) -> Log:
 def certify_without_outliers(
     log: Log, solution: Solution, certify: Callable[..., Any], deadline: float | None
 ) -> None:
-    """Try to prove the best hypothesis consistent with the proven outliers left out.
+    """Try to prove the best-ranked hypothesis whose outliers, with the proven ones, meet the
+    declaration consistent, with all of them left out.
 
     A verified point that satisfies every constraint but those of the proven outliers
     (fewer than declared, or the solve would have said so) is a world that meets the
@@ -239,15 +240,22 @@ def certify_without_outliers(
     """
     if not solution.hypotheses or solution.outliers is None:
         return
-    best = solution.hypotheses[0]
-    proven = {p["observation"] for p in solution.outliers["proven"]} | set(best.outliers)
-    if not check_declaration(log, sorted(proven))[0]:  # a witness without them proves nothing
+    listed = {p["observation"] for p in solution.outliers["proven"]}
+    best = next(
+        (
+            h
+            for h in solution.hypotheses
+            if check_declaration(log, sorted(listed | set(h.outliers)))[0]
+        ),
+        None,
+    )  # a witness without more outliers than declared proves nothing
+    if best is None:
         solution.messages.append(
-            f"not certified: the {len(best.outliers)} observation(s) the best hypothesis takes "
-            "as outliers and the proven ones are more than the outliers record allows, so it "
-            "stays 'not refuted'"
+            "not certified: each reported hypothesis takes observations as outliers that, with "
+            "the proven ones, are more than the outliers record allows, so all stay 'not refuted'"
         )
         return
+    proven = listed | set(best.outliers)
     reduced = log_without_observations(log, proven)
     trial = replace(best, assignment=[a for i, a in enumerate(best.assignment) if i not in proven])
     named = set(trial.assignment) | {p.landmark for p in reduced.landmark_priors}
@@ -260,6 +268,7 @@ def certify_without_outliers(
     alone = replace(solution, hypotheses=[trial], messages=[], statistics={}, timings={})
     certify(reduced, alone, deadline=deadline)
     best.status, best.witness = trial.status, trial.witness
+    solution.hypotheses.sort(key=lambda h: h.rank_key)  # a proven one ranks first
     solution.statistics.update(alone.statistics)
     solution.messages.extend(alone.messages)
     if proven and best.witness is not None:

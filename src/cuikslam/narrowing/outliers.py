@@ -326,7 +326,8 @@ def _branch(
 
 def _width(lo: np.ndarray, hi: np.ndarray) -> float:
     """The sum of the finite widths (a measure of progress, not of soundness)."""
-    widths = hi - lo
+    with np.errstate(invalid="ignore"):  # inf - inf: not finite, left out below
+        widths = hi - lo
     return float(widths[np.isfinite(widths)].sum())
 
 
