@@ -149,3 +149,22 @@ def test_result_file_reads_back_alike_with_and_without_orjson(decoder, tmp_path,
         np.testing.assert_array_equal(b.witness["landmarks_xy"], h.witness["landmarks_xy"])
     assert back.statistics == solution.statistics
     assert math.isnan(back.timings["solve_s"]) == math.isnan(solution.timings["solve_s"])
+
+
+def test_an_unbounded_pose_hull_is_written_as_null_and_read_back_infinite(
+    decoder, tmp_path
+) -> None:
+    """JSON has no infinity: the pose hull over every survivor was written ``Infinity``
+    (not JSON) where a move allowed 1.5e308 m twice (found by an adversarial helper)."""
+    hull = [[[0.0, math.inf], [-math.inf, 0.0], [0.0, 0.0]]]
+    solution = _solution()
+    solution.correspondence = {"follows": [], "certain": [], "factors": [], "pose_hull": hull}
+    path = tmp_path / "result.json"
+    write_result_file(solution, path)
+
+    def refuse(constant: str) -> None:
+        raise ValueError(f"not JSON: {constant}")
+
+    doc = json.loads(path.read_text(), parse_constant=refuse)
+    assert doc["correspondence"]["pose_hull"] == [[[0.0, None], [None, 0.0], [0.0, 0.0]]]
+    assert read_result_file(path).correspondence["pose_hull"] == hull

@@ -79,9 +79,32 @@ def solution_to_json(solution: Solution) -> dict[str, Any]:
         "log": solution.log_path,
         "consistency": solution.consistency,
         "cuikslam_version": __version__,
-        **({} if solution.correspondence is None else {"correspondence": solution.correspondence}),
+        **(
+            {}
+            if solution.correspondence is None
+            else {"correspondence": _correspondence_json(solution.correspondence)}
+        ),
         **({} if solution.outliers is None else {"outliers": solution.outliers}),
     }
+
+
+def _correspondence_json(correspondence: dict[str, Any]) -> dict[str, Any]:
+    """The correspondence summary with its pose hull's unbounded sides as null."""
+    hull = correspondence.get("pose_hull")
+    if hull is None:
+        return correspondence
+    return {**correspondence, "pose_hull": _bounds(np.asarray(hull, dtype=np.float64))}
+
+
+def _read_correspondence(correspondence: Any) -> Any:
+    """The correspondence summary read back, its pose hull's null sides infinite again."""
+    if not isinstance(correspondence, dict) or correspondence.get("pose_hull") is None:
+        return correspondence
+    hull = [
+        [list(_read_bounds(side, f"correspondence pose_hull, pose {i + 1}")) for side in box]
+        for i, box in enumerate(correspondence["pose_hull"])
+    ]
+    return {**correspondence, "pose_hull": hull}
 
 
 def write_result_file(solution: Solution, path: str | os.PathLike[str]) -> None:
@@ -92,10 +115,11 @@ def write_result_file(solution: Solution, path: str | os.PathLike[str]) -> None:
 
 def _finite(solution: Solution) -> bool:
     """No NaN (nor infinity) among the floats the result document holds outside the
-    bounds (which write infinities as null): witnesses, statistics, timings, the pose hull."""
+    bounds and the pose hull (which write infinities as null): witnesses, statistics,
+    timings, the pose hull's NaN."""
     hull = (solution.correspondence or {}).get("pose_hull")
-    if hull is not None and not np.isfinite(np.asarray(hull, dtype=float)).all():
-        return False
+    if hull is not None and np.isnan(np.asarray(hull, dtype=float)).any():
+        return False  # (infinite sides are written null)
     for value in (*solution.statistics.values(), *solution.timings.values()):
         if not (
             isinstance(value, int | str) or (isinstance(value, float) and math.isfinite(value))
@@ -203,7 +227,7 @@ def read_result_file(path: str | os.PathLike[str]) -> Solution:
             log_path=str(doc.get("log", "")),
             consistency=str(doc.get("consistency", "")),
             messages=list(doc.get("messages", [])),
-            correspondence=doc.get("correspondence"),
+            correspondence=_read_correspondence(doc.get("correspondence")),
             outliers=doc.get("outliers"),
         )
     except (KeyError, TypeError, ValueError, AttributeError) as err:
