@@ -79,7 +79,8 @@ def parse_log_lines(lines: Iterable[str], path: str = "<memory>") -> Log:
 
     Blank lines and lines starting with ``#`` are skipped. Each record is checked on its
     own first, then the log as a whole, in file order: a pose must be reached by a
-    prior or an earlier odometry before it is used, and a landmark id keeps one class.
+    prior or an earlier odometry before it is used, a landmark id keeps one class, and no
+    landmark has the reserved id (:func:`reject_reserved_landmark_id`).
 
     Raises
     ------
@@ -99,7 +100,9 @@ def parse_log_lines(lines: Iterable[str], path: str = "<memory>") -> Log:
             'add a {"type": "prior", ...} record',
         )
     _check_order(records, path)
-    return Log(records=records, path=path)
+    log = Log(records=records, path=path)
+    reject_reserved_landmark_id(log)
+    return log
 
 
 def _numbered_records(lines: Iterable[str]) -> Iterable[tuple[int, str]]:
@@ -160,8 +163,6 @@ def _check_order(records: list[Record], path: str) -> None:
         raise InputFileError(path, record.line, problem)
 
     def same_class(record: Observation | LandmarkPrior, landmark: str) -> None:
-        if landmark == RESERVED_LANDMARK_ID:
-            fail(record, _RESERVED)
         earlier = landmark_seen.setdefault(landmark, (record.landmark_class, record.line))
         if earlier[0] != record.landmark_class:
             fail(

@@ -114,12 +114,12 @@ def write_result_file(solution: Solution, path: str | os.PathLike[str]) -> None:
 
 
 def _finite(solution: Solution) -> bool:
-    """No NaN (nor infinity) among the floats the result document holds outside the
-    bounds and the pose hull (which write infinities as null): witnesses, statistics,
-    timings, the pose hull's NaN."""
+    """No NaN or infinity among the floats the result document holds (bounds and the pose
+    hull write infinities as null, so only a NaN counts there): witnesses, statistics,
+    timings, the pose hull."""
     hull = (solution.correspondence or {}).get("pose_hull")
     if hull is not None and np.isnan(np.asarray(hull, dtype=float)).any():
-        return False  # (infinite sides are written null)
+        return False
     for value in (*solution.statistics.values(), *solution.timings.values()):
         if not (
             isinstance(value, int | str) or (isinstance(value, float) and math.isfinite(value))
