@@ -15,12 +15,15 @@ import numpy as np
 import pytest
 
 import cuikslam.hypotheses.search as search
+import cuikslam.hypotheses.survivors as after_search
 from cuikslam.hypotheses import solve_unknown
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.log import Log, read_log_file
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
+from cuikslam.results.association import partition
+from cuikslam.simulate import simulate_paper
 from worlds import Truth, correspondence, true_index, truth_misses
 
 LOG = Path(__file__).parent / "data" / "bisection" / "bisection-refutes.jsonl"
@@ -51,8 +54,8 @@ def _bisections(log: Log, prefixes: list[list[int]] | None = None) -> list[Bisec
 
 
 def _no_bisection_after_the_search(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(search, "BISECTION_MIN_PARTS", 0)
-    monkeypatch.setattr(search, "BISECTION_PARTS_PER_NODE", 0)
+    monkeypatch.setattr(after_search, "BISECTION_MIN_PARTS", 0)
+    monkeypatch.setattr(after_search, "BISECTION_PARTS_PER_NODE", 0)
 
 
 def test_bisection_refutes_survivors_and_keeps_the_truth(
@@ -139,3 +142,57 @@ def test_a_bisection_whose_waiting_parts_outgrow_the_limit_gives_up(log: Log) ->
     assert not roomy.gave_up
     assert roomy.narrowed_parts == tight.narrowed_parts
     assert len(roomy.parts) > 2
+
+
+def test_survivors_refuted_after_the_search_give_their_place_to_the_next(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """When the bisection after the search refutes the survivors kept for the report, the
+    next best-ranked ones the search counted are bisected in their place, so the report
+    is not left empty while survivors wait (a sparse 200-pose world reported none of 50)."""
+    log, _ = simulate_paper(seed=0, unknown=True)
+    rounds: list[list[tuple[int, ...]]] = []
+    refuting = [False]
+
+    def refute_the_first_round(explorer, nodes, limit, refute):  # type: ignore[no-untyped-def]
+        rounds.append([tuple(n.decisions()) for n in nodes])
+        return [] if refuting[0] and len(rounds) == 1 else nodes
+
+    monkeypatch.setattr(after_search, "bisect_survivors", refute_the_first_round)
+    whole = solve_unknown(log, consistency="hull", max_hypotheses=3, local_frame=False)
+    rounds.clear()
+    refuting[0] = True
+    solution = solve_unknown(log, consistency="hull", max_hypotheses=3, local_frame=False)
+    assert whole.statistics["survivors"] > 6
+    assert [len(r) for r in rounds] == [3, 3]
+    assert not set(rounds[0]) & set(rounds[1])
+    assert solution.statistics["survivors"] == whole.statistics["survivors"] - 3
+    shown = {tuple(partition(h.assignment, set())) for h in solution.hypotheses}
+    before = {tuple(partition(h.assignment, set())) for h in whole.hypotheses}
+    assert len(shown) == 3
+    assert not shown & before
+
+
+def test_a_report_refuted_by_the_stronger_level_is_refilled(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """When the stronger level refutes every reported survivor, the next best-ranked ones
+    the search kept in reserve are narrowed in their place: the report is not empty
+    while survivors are counted (``--max-hypotheses 1`` left none of 29,266)."""
+    log, _ = simulate_paper(seed=0, unknown=True)
+    real = search.strengthen_report
+    calls: list[int] = []
+
+    def refute_the_first_report(explorer, report, *args):  # type: ignore[no-untyped-def]
+        calls.append(len(report))
+        if len(calls) == 1:
+            return [], report, "lp"
+        return real(explorer, report, *args)
+
+    monkeypatch.setattr(search, "strengthen_report", refute_the_first_report)
+    solution = solve_unknown(log, consistency="lp", max_hypotheses=1, local_frame=False)
+    assert calls == [1, 1]
+    assert len(solution.hypotheses) == 1
+    assert solution.hypotheses[0].consistency == "lp"
+    total = solve_unknown(log, consistency="hull", max_hypotheses=1, local_frame=False)
+    assert solution.statistics["survivors"] == total.statistics["survivors"] - 1

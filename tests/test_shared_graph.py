@@ -13,6 +13,7 @@ import pytest
 
 from cuikslam.graph.encoding import KIND, NO_FACTOR, OBSERVATION, ODOMETRY
 from cuikslam.hypotheses import _shared, search, solve_unknown
+from cuikslam.hypotheses import survivors as after_search
 from cuikslam.hypotheses._gates import gate
 from cuikslam.hypotheses._shared import EMPTY_OVERLAY, Overlay, SharedGraph
 from cuikslam.hypotheses.explorer import Budget, Explorer, Node
@@ -100,8 +101,8 @@ def test_maintenance_changes_no_result(
         seed=seed, n_poses=n_poses, n_landmarks=6, size=size, unknown=True
     )
     # many survivors make the comparison strong: bisection would refute most of them
-    monkeypatch.setattr(search, "BISECTION_MIN_PARTS", 0)
-    monkeypatch.setattr(search, "BISECTION_PARTS_PER_NODE", 0)
+    monkeypatch.setattr(after_search, "BISECTION_MIN_PARTS", 0)
+    monkeypatch.setattr(after_search, "BISECTION_PARTS_PER_NODE", 0)
     monkeypatch.setattr("cuikslam.hypotheses.explorer.LEAF_BISECTION_PARTS", 0)
     monkeypatch.setattr(_shared, "MIN_MAINTENANCE_LOAD", 10**12)
     never = solve_unknown(log, consistency="hull", max_nodes=300, local_frame=False)

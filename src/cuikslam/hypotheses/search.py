@@ -20,18 +20,26 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.budget import portion
+from cuikslam.budget import expired, portion
 from cuikslam.hypotheses._shared import SharedGraph
-from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
+from cuikslam.hypotheses.bisection import refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.labelled import has_labelled_logs, solve_labelled
-from cuikslam.hypotheses.outlier_option import OUTLIER
-from cuikslam.hypotheses.problem import Problem, build_problem
+from cuikslam.hypotheses.problem import build_problem
+from cuikslam.hypotheses.survivors import (
+    BEST_ATTEMPTS,
+    Entry,
+    Refute,
+    bisect_with_reserve,
+    hypothesis_of,
+    strengthen_report,
+    unreported,
+)
 from cuikslam.hypotheses.tally import Tally
 from cuikslam.hypotheses.tree import Budget, Node
 from cuikslam.log.records import Log
@@ -39,9 +47,7 @@ from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
 from cuikslam.options import SolveOptions
 from cuikslam.outliers import search_outliers_json
-from cuikslam.results.association import anonymous_names, partition
-from cuikslam.results.solution import OUTLIER as OUTLIER_MARK
-from cuikslam.results.solution import Hypothesis, Solution
+from cuikslam.results.solution import Solution
 from cuikslam.results.summary import describe, summarize, summary_to_json
 
 __all__ = [
@@ -53,30 +59,14 @@ __all__ = [
 
 DEFAULT_MAX_HYPOTHESES = SolveOptions.max_hypotheses
 """Survivors reported in detail at most (the best-ranked); the search itself explores all."""
-MAX_UNREPORTED = 1000
-"""Survivors beyond the report whose assignments the solution keeps (``unreported``), for
-the least-squares fit that may report them instead (:mod:`.witness.fit`)."""
 DEFAULT_STRENGTHEN_LIMIT = SolveOptions.strengthen_limit
 """Reported survivors narrowed to the stronger consistency level at most (else the
 best-ranked)."""
-BEST_ATTEMPTS = 10
-"""Beyond ``strengthen_limit`` survivors, the best-ranked are tried until one is not refuted."""
 DEFAULT_STRENGTHEN_DURING = SolveOptions.strengthen_during
 """Decisions (the first ones; None: all) whose nodes get ``lp`` before they branch."""
 SEARCH_SHARE = 0.7
 """Share of the time budget the search itself may use: the rest is left to deciding its
 survivors (bisection, the stronger level), even when the search is cut short."""
-BISECTION_SHARE = 0.5
-"""Share of the search's time left that bisection may use on the survivors."""
-BISECTION_PARTS = 512
-"""Parts each survivor's bisection may narrow at most."""
-BISECTION_TOTAL_PARTS = 32_768
-"""Parts the bisections of all survivors together may narrow at most (with a time budget,
-its share of the time bounds them first)."""
-BISECTION_PARTS_PER_NODE = 1
-"""Without a time budget, parts the bisections may narrow per node the search created (at
-least ``BISECTION_MIN_PARTS``): bisection then costs about as much as the search did."""
-BISECTION_MIN_PARTS = 256
 MAINTAIN_EVERY = 1024
 """Node expansions between two looks at the shared graph's housekeeping."""
 SHOWN_PREFIXES = 5
@@ -88,6 +78,8 @@ class _Outcome:
     survivors: list[Node]
     unexplored: list[Node]
     stop_reason: str | None
+    reserve: list[Node] = field(default_factory=list)
+    """The next best-ranked survivors, to take the place of kept ones refuted later."""
 
 
 def explore(
@@ -97,11 +89,13 @@ def explore(
     keep: int,
     on_survivor: Callable[[Node], None] | None = None,
     progress: Callable[[int, int], None] | None = None,
+    reserve: int = 0,
 ) -> _Outcome:
     """Depth-first search of the subtree of ``start`` (of each start node in turn).
 
     Every survivor is counted (and passed to ``on_survivor``); the ``keep`` best-ranked are
-    returned. A budget stop returns the pending subtrees as ``unexplored``.
+    returned, and the ``reserve`` next ones apart. A budget stop returns the pending
+    subtrees as ``unexplored``.
     """
     stats, graph = explorer.stats, explorer.graph
     n_decisions = len(explorer.problem.decisions)
@@ -123,8 +117,8 @@ def explore(
             survivors.append(node)
             if on_survivor is not None:
                 on_survivor(node)
-            if len(survivors) > 2 * keep:
-                survivors = _best(explorer, survivors, keep)
+            if len(survivors) > 2 * (keep + reserve):
+                survivors = _best(explorer, survivors, keep + reserve)
             continue
         kids, options = explorer.children(node)
         expanded += 1
@@ -136,7 +130,8 @@ def explore(
             if progress is not None:
                 progress(int(1000 * done), 1000)
     stats.explored_fraction = min(1.0, done)
-    return _Outcome(_best(explorer, survivors, keep), stack if reason else [], reason)
+    ranked = _best(explorer, survivors, keep + reserve)
+    return _Outcome(ranked[:keep], stack if reason else [], reason, ranked[keep:])
 
 
 def _maintain(
@@ -176,141 +171,11 @@ def _best(explorer: Explorer, nodes: list[Node], keep: int) -> list[Node]:
     return sorted(nodes, key=lambda n: _rank_key(explorer, n))[:keep]
 
 
-def _hypothesis(explorer: Explorer, node: Node) -> Hypothesis:
-    """A survivor as the user sees it: landmark names, assignment in log order, boxes."""
-    p = explorer.problem
-    lo, hi = explorer.graph.materialize(node.overlay)
-    xs = explorer.landmark_xs(node)
-    first = [*p.first_seen, *(p.decisions[k].record for k in node.blocks)]
-    order = sorted(range(len(xs)), key=lambda n: first[n])
-    fresh = anonymous_names(set(p.named))
-    names: dict[int, str] = {OUTLIER: OUTLIER_MARK}
-    for n in order:
-        names[n] = p.named[n] if n < explorer.n_named else next(fresh)
-    assignment = [""] * p.n_observations
-    for position, n in p.named_assignment.items():
-        assignment[position] = names[n]
-    for d, n in zip(p.decisions, node.decisions(), strict=True):
-        assignment[d.position] = names[n]
-    pose_ids = sorted(p.pose_x)
-    cols = np.array([p.pose_x[q] for q in pose_ids], dtype=np.int64)[:, None] + np.arange(3)
-    lcols = xs[order][:, None] + np.arange(2)
-    return Hypothesis(
-        assignment=assignment,
-        pose_ids=pose_ids,
-        poses=np.stack([lo[cols], hi[cols]], axis=-1),
-        landmark_ids=[names[n] for n in order],
-        landmark_classes=[explorer.landmark_class(node, n) for n in order],
-        landmarks=np.stack([lo[lcols], hi[lcols]], axis=-1).reshape(-1, 2, 2),
-        consistency=node.level,
-    )
-
-
-def _unreported(tally: Tally, problem: Problem, report: list[Entry]) -> list[list[str]]:
-    """The assignments of the first ``MAX_UNREPORTED`` survivors not in ``report`` (none
-    when every survivor is reported)."""
-    if tally.explorer.stats.survivors <= len(report):
-        return []
-    named = set(problem.named)
-    shown = {tuple(partition(h.assignment, named)) for h, _ in report}
-    unreported: list[list[str]] = []
-    for a in tally.kept():
-        if len(unreported) >= MAX_UNREPORTED:
-            break
-        if tuple(partition(a, named)) not in shown:
-            unreported.append(a)
-    return unreported
-
-
-Refute = Callable[[list[Bisection], float | None, int, int], list[bool]]
-"""Runs bisections (a list, a deadline, parts per bisection, parts in all) and says which
-are refuted: :func:`~.bisection.refute_by_bisection`, or a cluster's map of it."""
-
-
-def _bisect_survivors(
-    explorer: Explorer, survivors: list[Node], limit: int, refute: Refute = refute_by_bisection
-) -> list[Node]:
-    """The survivors that bisection does not prove impossible (:mod:`.bisection`), when
-    there are 2 to ``limit`` of them; it may use ``BISECTION_SHARE`` of the time left to
-    the deadline and ``BISECTION_PARTS`` parts per survivor, ``BISECTION_TOTAL_PARTS`` in
-    all, or without a deadline ``BISECTION_PARTS_PER_NODE`` per node created by the search
-    (at least ``BISECTION_MIN_PARTS``). ``refute`` runs them."""
-    if len(survivors) < 2 or len(survivors) > limit:
-        return survivors  # a lone survivor is left to the witness search to prove
-    deadline = portion(explorer.deadline, BISECTION_SHARE)
-    bisections = [explorer.bisection(node) for node in survivors]
-    total = BISECTION_TOTAL_PARTS
-    if deadline is None:
-        per_node = BISECTION_PARTS_PER_NODE * explorer.stats.created
-        total = min(total, max(BISECTION_MIN_PARTS, per_node))
-    refuted = refute(bisections, deadline, BISECTION_PARTS, total)
-    explorer.stats.refuted_by_bisection += sum(refuted)
-    return [n for n, r in zip(survivors, refuted, strict=True) if not r]
-
-
 Rank = Callable[[Solution], object]
 """Orders the hull-level report before the stronger level narrows it (the least-squares
 fit, :func:`~.witness.fit.fit_hypotheses`): it may reorder ``Solution.hypotheses``, put
 ``Solution.unreported`` survivors in place of reported ones (with boxes of their own,
 level ``hull``), and add statistics, timings and messages."""
-
-
-Entry = tuple[Hypothesis, Node | None]
-"""A reported hypothesis and its node (None when the ranking put it in the report)."""
-
-
-def _strengthen_report(
-    explorer: Explorer,
-    report: list[Entry],
-    level: str,
-    limit: int,
-    messages: list[str],
-    labelled: Callable[[Hypothesis], Hypothesis | None] | None,
-) -> tuple[list[Entry], list[Entry], str]:
-    """Narrow the reported hypotheses to ``level`` in report order: all of them when at
-    most ``limit`` are reported, else the first until one is not refuted. A hypothesis
-    is narrowed on its labelled log (``labelled``, :func:`.labelled.solve_labelled`; None
-    for a log without labelled logs) when it has no node (the ranking put it in the
-    report) or the log has no negative information: the labelled log then holds the same
-    constraints, without the search's unused landmark slots (on Lost in the Woods, 201
-    poses, 4,541 variables instead of 6,645: ``lp`` in 6 s instead of 43 s, the same
-    boxes to 1 %). Otherwise it is narrowed as a node of the search. Returns the report,
-    the entries refuted, and the level all of them reach."""
-    if level == "hull" or not report:
-        return report, [], level
-    every = len(report) <= limit
-    if not every:
-        messages.append(
-            f"{len(report)} hypotheses are reported: the '{level}' level was applied to "
-            f"one of them only, the first in rank order (to all when at most {limit}; raise "
-            "--strengthen-limit); the others' boxes are at least hull-consistent"
-        )
-    same = labelled is not None and not explorer.problem.has_sensor  # the same constraints
-    refuted: list[Entry] = []
-    reached = [] if every else ["hull"]
-    out: list[Entry] = []
-    attempts, done = 0, False
-    for h, node in report:
-        wanted = every or (not done and attempts < BEST_ATTEMPTS)
-        if not wanted or (node is None and labelled is None):
-            reached.append(h.consistency)
-            out.append((h, node))
-            continue
-        attempts += 1
-        if labelled is not None and (node is None or same):
-            better = labelled(h)
-        else:
-            narrowed = explorer.strengthen_node(node, level)
-            better = None if narrowed is None else _hypothesis(explorer, narrowed)
-        if better is None:
-            refuted.append((h, node))
-            continue
-        done = True
-        better.fit = h.fit
-        reached.append(better.consistency)
-        out.append((better, node))
-    short = [v for v in reached if v != level]  # cut short by a deadline, or never narrowed
-    return out, refuted, short[0] if short else level
 
 
 def solve_unknown(
@@ -397,11 +262,13 @@ def solve_unknown(
             max(1, max_hypotheses),
             tally.add,
             progress,
+            reserve=max(1, max_hypotheses),
         )
     unexplored = [n.decisions() for n in outcome.unexplored]
     return finish_search(
         log, explorer, tally, outcome.survivors, unexplored, outcome.stop_reason,
         consistency, strengthen_limit, progress, start, messages, rank=rank,
+        reserve=outcome.reserve,
     )  # fmt: skip
 
 
@@ -419,6 +286,7 @@ def finish_search(
     messages: list[str],
     refute: Refute = refute_by_bisection,
     rank: Rank | None = None,
+    reserve: list[Node] | None = None,
 ) -> Solution:
     """What follows the search, wherever it ran: the survivors' bisection, their ranking
     (``rank``, when given), the stronger level in that order, the reported hypotheses,
@@ -427,7 +295,8 @@ def finish_search(
     ``found`` are the best-ranked survivors (nodes of ``explorer``), ``explorer.stats``
     counts the whole search, ``unexplored`` names the subtrees left by a budget stop
     (``stop_reason``), the next one to explore last; ``refute`` runs the survivors'
-    bisections (on a cluster, their share on each worker).
+    bisections (on a cluster, their share on each worker); ``reserve`` are the next
+    best-ranked survivors, bisected in turn to take the place of those it refutes.
     """
     problem = explorer.problem
     stats = explorer.stats
@@ -441,7 +310,9 @@ def finish_search(
             f"first: {shown}); the result is INCOMPLETE: the true hypothesis may be in them"
         )
     as_leaves = stats.refuted_by_bisection
-    survivors = _bisect_survivors(explorer, found, strengthen_limit, refute)
+    survivors, bisected, spare = bisect_with_reserve(
+        explorer, tally, found, reserve or [], strengthen_limit, refute
+    )
     if stats.refuted_by_bisection:
         after = stats.refuted_by_bisection - as_leaves
         words = ("hypothesis", "its", "box"), ("hypotheses", "their", "boxes")
@@ -449,18 +320,13 @@ def finish_search(
         messages.append(
             f"bisection proved {stats.refuted_by_bisection} {what} impossible that narrowing "
             f"{whose} whole {boxes} left ({as_leaves} as the search reached them, {after} of "
-            f"{len(found)} survivors after it): every part of {whose} {boxes} contracts to "
+            f"{bisected} survivors after it): every part of {whose} {boxes} contracts to "
             "empty"
         )
-    alive = {tuple(n.decisions()) for n in survivors}
-    for node in found:
-        if tuple(node.decisions()) not in alive:  # refuted by bisection
-            tally.discard(node)
-            stats.survivors -= 1
     report: list[Entry] = sorted(
-        ((_hypothesis(explorer, n), n) for n in survivors), key=lambda r: r[0].rank_key
+        ((hypothesis_of(explorer, n), n) for n in survivors), key=lambda r: r[0].rank_key
     )
-    ranked = Solution([h for h, _ in report], unreported=_unreported(tally, problem, report))
+    ranked = Solution([h for h, _ in report], unreported=unreported(tally, problem, report))
     if rank is not None and (len(report) > 1 or ranked.unreported):
         node_of = {id(h): n for h, n in report}
         rank(ranked)
@@ -472,9 +338,16 @@ def finish_search(
         if has_labelled_logs(log)
         else None
     )
-    report, refuted, level = _strengthen_report(
+    report, refuted, level = strengthen_report(
         explorer, report, consistency, strengthen_limit, messages, labelled
     )
+    while not report and spare and not expired(deadline):  # the next ones, not left empty
+        take, spare = spare[:BEST_ATTEMPTS], spare[BEST_ATTEMPTS:]
+        entries = [(hypothesis_of(explorer, n), n) for n in take]
+        report, gone, level = strengthen_report(
+            explorer, entries, consistency, strengthen_limit, messages, labelled
+        )
+        refuted += gone
     for h, node in refuted:  # by the stronger level
         if node is None:
             tally.discard_assignment(h.assignment)
