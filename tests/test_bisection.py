@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import cuikslam.hypotheses.search as search
 import cuikslam.hypotheses.survivors as after_search
 from cuikslam.hypotheses import solve_unknown
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
@@ -180,7 +179,7 @@ def test_a_report_refuted_by_the_stronger_level_is_refilled(
     the search kept in reserve are narrowed in their place: the report is not empty
     while survivors are counted (``--max-hypotheses 1`` left none of 29,266)."""
     log, _ = simulate_paper(seed=0, unknown=True)
-    real = search.strengthen_report
+    real = after_search.strengthen_report
     calls: list[int] = []
 
     def refute_the_first_report(explorer, report, *args):  # type: ignore[no-untyped-def]
@@ -189,7 +188,7 @@ def test_a_report_refuted_by_the_stronger_level_is_refilled(
             return [], report, "lp"
         return real(explorer, report, *args)
 
-    monkeypatch.setattr(search, "strengthen_report", refute_the_first_report)
+    monkeypatch.setattr(after_search, "strengthen_report", refute_the_first_report)
     solution = solve_unknown(log, consistency="lp", max_hypotheses=1, local_frame=False)
     assert calls == [1, 1]
     assert len(solution.hypotheses) == 1

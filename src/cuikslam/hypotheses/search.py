@@ -25,19 +25,18 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.budget import expired, portion
+from cuikslam.budget import portion
 from cuikslam.hypotheses._shared import SharedGraph
 from cuikslam.hypotheses.bisection import refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.labelled import has_labelled_logs, solve_labelled
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.survivors import (
-    BEST_ATTEMPTS,
     Entry,
     Refute,
     bisect_with_reserve,
     hypothesis_of,
-    strengthen_report,
+    strengthen_with_reserve,
     unreported,
 )
 from cuikslam.hypotheses.tally import Tally
@@ -254,15 +253,16 @@ def solve_unknown(
     root = explorer.root()
     tally = Tally(explorer, on_survivor)
     outcome = _Outcome([], [], None)
+    keep = max(1, max_hypotheses)
     if root is not None:
         outcome = explore(
             explorer,
             root,
             Budget(portion(deadline, SEARCH_SHARE), max_nodes),
-            max(1, max_hypotheses),
+            keep,
             tally.add,
             progress,
-            reserve=max(1, max_hypotheses),
+            reserve=keep,
         )
     unexplored = [n.decisions() for n in outcome.unexplored]
     return finish_search(
@@ -338,16 +338,9 @@ def finish_search(
         if has_labelled_logs(log)
         else None
     )
-    report, refuted, level = strengthen_report(
-        explorer, report, consistency, strengthen_limit, messages, labelled
+    report, refuted, level = strengthen_with_reserve(
+        explorer, report, spare, consistency, strengthen_limit, messages, labelled
     )
-    while not report and spare and not expired(deadline):  # the next ones, not left empty
-        take, spare = spare[:BEST_ATTEMPTS], spare[BEST_ATTEMPTS:]
-        entries = [(hypothesis_of(explorer, n), n) for n in take]
-        report, gone, level = strengthen_report(
-            explorer, entries, consistency, strengthen_limit, messages, labelled
-        )
-        refuted += gone
     for h, node in refuted:  # by the stronger level
         if node is None:
             tally.discard_assignment(h.assignment)

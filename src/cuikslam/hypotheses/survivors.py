@@ -25,6 +25,7 @@ __all__ = [
     "bisect_with_reserve",
     "hypothesis_of",
     "strengthen_report",
+    "strengthen_with_reserve",
     "unreported",
 ]
 
@@ -202,3 +203,27 @@ def strengthen_report(
         out.append((better, node))
     short = [v for v in reached if v != level]  # cut short by a deadline, or never narrowed
     return out, refuted, short[0] if short else level
+
+
+def strengthen_with_reserve(
+    explorer: Explorer,
+    report: list[Entry],
+    reserve: list[Node],
+    level: str,
+    limit: int,
+    messages: list[str],
+    labelled: Callable[[Hypothesis], Hypothesis | None] | None,
+) -> tuple[list[Entry], list[Entry], str]:
+    """:func:`strengthen_report` on ``report``; when it refutes every entry and time is
+    left, the next ``BEST_ATTEMPTS`` of ``reserve`` (best-ranked first) are narrowed in
+    their place, so that the report is not left empty while survivors are counted.
+    Returns the report, every entry refuted, and the level reached."""
+    report, refuted, reached = strengthen_report(explorer, report, level, limit, messages, labelled)
+    while not report and reserve and not expired(explorer.deadline):
+        take, reserve = reserve[:BEST_ATTEMPTS], reserve[BEST_ATTEMPTS:]
+        entries = [(hypothesis_of(explorer, n), n) for n in take]
+        report, gone, reached = strengthen_report(
+            explorer, entries, level, limit, messages, labelled
+        )
+        refuted += gone
+    return report, refuted, reached
