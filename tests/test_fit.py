@@ -253,3 +253,16 @@ def test_a_survivor_is_discarded_by_its_partition_whatever_its_new_landmarks_are
     tally.assignments = [["A", "+1"], ["+1", "A"], ["A", "B"]]
     tally.discard_assignment(["N1", "A"])
     assert tally.kept() == [["A", "+1"], ["A", "B"]]
+
+
+def test_a_landmark_the_robot_would_have_seen_raises_the_fit() -> None:
+    """A new landmark placed at the reading fits it as well as door A does, but then A,
+    1 m inside the sensor's range, was not seen: with the sensor record the fit pays for
+    moving A out of range against its 0.01 m prior; without it both cost the same."""
+    sensor = '{"type": "sensor", "max_range": 3.0}'
+    log = parse_log_lines([MAP[0], MAP[1], sensor, _reading(0.0)])
+    seen, _ = fit_cost(HypothesisModel(log, ["A"]), None)
+    new, _ = fit_cost(HypothesisModel(log, ["N"]), None)
+    blind, _ = fit_cost(HypothesisModel(log, ["N"], use_sensor=False), None)
+    assert blind <= seen + 1e-9
+    assert new > seen + 1.0

@@ -8,6 +8,8 @@ A mixin of the model (which holds the parametrisation and evaluates the checks):
 * :meth:`Residuals.sensor_residuals`: the sensor's violations per (pose, landmark) pair,
   restricted to the pairs :meth:`Residuals.focus_sensor` keeps;
 * :meth:`Residuals.centre_residuals`: distances from the intervals' centres (a start);
+* :meth:`Residuals.fit_residuals`: the same and the sensor's violations (the fit that
+  ranks hypotheses);
 * :meth:`Residuals.margin_residuals`: hinges at the aimed margins (what a witness meets).
 """
 
@@ -148,6 +150,19 @@ class Residuals:
             Jc = (bounded / half)[:, None] * J
             Jp = np.diag(pbounded / phalf)
         return out, finite(np.concatenate([Jc, Jp, Jf]), nan=0.0)
+
+    def fit_residuals(
+        self, p: np.ndarray, jacobian: bool = False
+    ) -> tuple[np.ndarray, np.ndarray | None]:
+        """:meth:`centre_residuals`, then one sensor violation per pose (0 where the
+        negative information holds): the least-squares estimate of a back end that also
+        knows what the robot would have seen."""
+        r, J = self.centre_residuals(p, jacobian)
+        sr, Js = self._sensor_per_pose(p, jacobian)
+        if not jacobian:
+            return np.concatenate([r, sr]), None
+        assert J is not None and Js is not None
+        return np.concatenate([r, sr]), np.concatenate([J, Js])
 
     @np.errstate(all="ignore")  # overflow is clipped (see _numeric.finite)
     def _sensor_per_pose(

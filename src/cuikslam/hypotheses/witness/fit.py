@@ -4,12 +4,18 @@ Hypotheses with as many outliers and landmarks differ in which readings they pai
 The truth pairs readings whose errors are spread inside their intervals; a wrong pairing
 leans on errors near the bounds (that is why narrowing finds it nearer to contradiction,
 with smaller boxes). So :func:`fit_hypotheses` gives each hypothesis the cost of its
-least-squares estimate (:meth:`~.model.HypothesisModel.centre_residuals`: each measured
+least-squares estimate (:meth:`~.model.HypothesisModel.fit_residuals`: each measured
 value's distance from its interval's centre, in half-widths, squared and summed: what a
-least-squares back end minimises with those as standard deviations), and
+least-squares back end minimises with those as standard deviations; with a ``sensor``
+record, plus each pose's violations of the negative information, squared, in the median
+half-widths of the ranges and bearings), and
 :attr:`~cuikslam.results.Hypothesis.rank_key` ranks by it after parsimony. On Lost in the
 Woods (2,000 samples, every id dropped, the surveyed map, 176 survivors) the truth ranks
-first by it (cost 45.5, the next 48.1); by smallest boxes it ranked last.
+first by it (cost 45.5, the next 48.1); by smallest boxes it ranked last. A wrong "new
+landmark" explanation fits the readings as well as the truth (it has one landmark to
+place freely) but puts a landmark the robot would have seen where it saw none; without
+the sensor term the dense 30-pose world of seed 9 ranked the truth last of 4 (48.1
+against 47.1–47.8), with it first (the others 48.6–49.0).
 
 When more survive than are reported, the search keeps those with the smallest boxes for
 the report; the others (``Solution.unreported``) are fitted too, and those that fit better
@@ -49,6 +55,9 @@ FIT_EVALUATIONS = 30
 """Residual evaluations of one hypothesis' least squares at most (on the 200-pose Lost in
 the Woods window it stops after 8 from the boxes' centres, 5 from a neighbour's
 minimiser)."""
+FIT_SENSOR_SLACK = 2.0
+"""Metres beyond the sensor's range within which a (pose, landmark) pair of the start's
+world enters the fit's negative information."""
 FIT_MAX_HYPOTHESES = 1000
 """Hypotheses fitted at most, in rank order (the rest rank by box size after them)."""
 
@@ -91,6 +100,7 @@ def fit_cost(
         start = np.clip(start, lb, ub)
         start[~free] = p0[~free]
         p0 = min((p0, start), key=lambda q: _cost(model, q))
+    _focus_sensor(model, p0)
     if not np.any(free):
         return _cost(model, p0), p0
     lb, ub = lb[free], ub[free]
@@ -98,7 +108,7 @@ def fit_cost(
     def on_free(z: np.ndarray, jacobian: bool) -> tuple[np.ndarray, np.ndarray | None]:
         q = p0.copy()
         q[free] = z
-        return model.centre_residuals(q, jacobian)
+        return model.fit_residuals(q, jacobian)
 
     meter = _Meter(deadline, max_evaluations, WitnessStatistics())
     z0 = np.clip(p0[free], lb, ub)
@@ -117,9 +127,22 @@ def fit_cost(
     return _cost(model, p), p
 
 
+def _focus_sensor(model: HypothesisModel, p: np.ndarray) -> None:
+    """Let the fit see the sensor pairs within ``max_range + FIT_SENSOR_SLACK`` of each
+    other in the start's world (and the observed ones): the others cannot become visible
+    in the few steps of the fit, and all pairs of a long log would not fit in memory."""
+    if model.sensor is None:
+        return
+    poses, landmarks = model.poses(p)[0], model.landmarks(p)
+    model.focus_sensor(
+        np.stack([poses, poses], axis=-1), np.stack([landmarks, landmarks], axis=-1),
+        slack=FIT_SENSOR_SLACK,
+    )  # fmt: skip
+
+
 def _cost(model: HypothesisModel, p: np.ndarray) -> float:
     with np.errstate(all="ignore"):
-        return float(np.sum(model.centre_residuals(p)[0] ** 2))
+        return float(np.sum(model.fit_residuals(p)[0] ** 2))
 
 
 class _Fitter:
