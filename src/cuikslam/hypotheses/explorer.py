@@ -285,8 +285,8 @@ class Explorer:
 
     def _after_decision(self, child: Node) -> Node | None:
         """The class prior's separation, negative information once the decided observation
-        completes its pose's scan, then the window of its pose narrowed in that pose's
-        frame."""
+        completes its pose's scan, then windows up to its pose narrowed in a local frame
+        (more of them once the scan is decided)."""
         d = self.problem.decisions[child.depth - 1]
         if child.assigned[0] != OUTLIER and self._too_close(child, child.assigned[0]):
             self.stats.refuted_by_class_prior += 1
@@ -295,7 +295,7 @@ class Explorer:
             child = self._unseen_scans(child, [d.pose])
         if child is None or self.local is None:
             return child
-        if self.local.refutes(self.graph, child.overlay, d.pose, d.pose_x):
+        if self.local.refutes(self.graph, child.overlay, d.pose, d.completes_scan):
             self.stats.refuted_in_local_frame += 1
             return None
         return child
