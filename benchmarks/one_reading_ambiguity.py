@@ -59,7 +59,8 @@ def main(argv: list[str] | None = None) -> int:
         solution, seconds = solve_leaving({r})
         choices = [h.assignment[r] for h in solution.hypotheses]
         product *= len(choices)
-        print(f"{r:>8} {truth[r]:>8} {len(choices):>8} {seconds:>8.1f}  {' '.join(choices)}")
+        cut = "" if solution.complete else "  (INCOMPLETE: the budget ran out)"
+        print(f"{r:>8} {truth[r]:>8} {len(choices):>8} {seconds:>8.1f}  {' '.join(choices)}{cut}")
     if args.together:
         solution, seconds = solve_leaving(set(args.readings))
         print(

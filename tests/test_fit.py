@@ -257,8 +257,9 @@ def test_a_survivor_is_discarded_by_its_partition_whatever_its_new_landmarks_are
 
 def test_a_landmark_the_robot_would_have_seen_raises_the_fit() -> None:
     """A new landmark placed at the reading fits it as well as door A does, but then A,
-    1 m inside the sensor's range, was not seen: with the sensor record the fit pays for
-    moving A out of range against its 0.01 m prior; without it both cost the same."""
+    1 m inside the sensor's range, was not seen: with the sensor record the fit pays that
+    violation (A cannot leave the range without breaking its 0.01 m prior); without the
+    record the new landmark costs no more than A."""
     sensor = '{"type": "sensor", "max_range": 3.0}'
     log = parse_log_lines([MAP[0], MAP[1], sensor, _reading(0.0)])
     seen, _ = fit_cost(HypothesisModel(log, ["A"]), None)
@@ -266,3 +267,20 @@ def test_a_landmark_the_robot_would_have_seen_raises_the_fit() -> None:
     blind, _ = fit_cost(HypothesisModel(log, ["N"], use_sensor=False), None)
     assert blind <= seen + 1e-9
     assert new > seen + 1.0
+
+
+def test_fit_residuals_jacobian_matches_finite_differences() -> None:
+    """The sensor rows' derivatives (a violated pair: door A unseen in range) agree with
+    central differences, so the least squares descends the cost it reports."""
+    sensor = '{"type": "sensor", "max_range": 3.0}'
+    log = parse_log_lines([MAP[0], MAP[1], sensor, _reading(0.0)])
+    model = HypothesisModel(log, ["N"])
+    p = model.initial_params() + 0.01
+    r, J = model.fit_residuals(p, jacobian=True)
+    assert J is not None and r[-1] > 0  # the sensor row is violated
+    h = 1e-6
+    for k in range(len(p)):
+        step = np.zeros_like(p)
+        step[k] = h
+        numeric = (model.fit_residuals(p + step)[0] - model.fit_residuals(p - step)[0]) / (2 * h)
+        np.testing.assert_allclose(J[:, k], numeric, rtol=1e-5, atol=1e-6)

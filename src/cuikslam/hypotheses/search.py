@@ -227,9 +227,9 @@ def solve_unknown(
         level may still refute some of them afterwards (``statistics['survivors']`` counts
         those left).
     local_frame : bool
-        Narrow the window of each decided pose in that pose's frame, where relative
-        geometry is tight although absolute boxes are wide (:mod:`.local`); off only to
-        measure what it prunes.
+        Narrow windows of poses up to each decided pose in a frame fixed at one of their
+        poses, where relative geometry is tight although absolute boxes are wide
+        (:mod:`.local`); off only to measure what it prunes.
     rank : callable, optional
         Called with the survivors' report at ``hull`` (a :class:`Solution`) before the
         stronger level: it may order it and put unreported survivors in it (see

@@ -50,7 +50,7 @@ class SearchStatistics:
     created: int = 0
     """Children created (each a consistent-looking partial hypothesis)."""
     refuted_in_local_frame: int = 0
-    """Children whose window around the decided pose is inconsistent in that pose's frame."""
+    """Children with a window of poses up to the decided one inconsistent in a local frame."""
     refuted_by_consistency: int = 0
     """Nodes or survivors of hull consistency refuted by the stronger consistency level."""
     refuted_by_bisection: int = 0

@@ -90,6 +90,10 @@ class Residuals:
             near = ~(gap > self.sensor.max_range + slack)  # NaN (no box) counts as near
         self._sensor_rows = np.flatnonzero(near | self.observed)
 
+    def see_all_sensor_pairs(self) -> None:
+        """Undo :meth:`focus_sensor`: every (pose, landmark) pair counts again."""
+        self._sensor_rows = np.arange(self.n_poses * self.n_landmarks)
+
     def sensor_residuals(
         self, p: np.ndarray, jacobian: bool = False
     ) -> tuple[np.ndarray, np.ndarray | None]:
