@@ -326,3 +326,32 @@ def test_atan2_principal_straddling_cut():
     # the classic atan2 cannot do better than [-π, π] there
     out = ia.atan2(iv(-0.1, 0.1), iv(-2.0, -1.0))
     assert out[0] <= -math.pi + math.atan(0.1) and out[1] >= math.pi - math.atan(0.1)
+
+
+def _signed(box, signs):
+    """The box with each zero bound given the sign drawn for it (an interval's zero has none)."""
+    return iv(*(math.copysign(0.0, -1.0 if s else 1.0) if b == 0.0 else b
+                for b, s in zip(box, signs, strict=True)))  # fmt: skip
+
+
+@settings(max_examples=3 * N, deadline=None)
+@given(
+    px=st.sampled_from([0.0, 1.0, -1.0, 1e-310, -5e-324]),
+    py=st.sampled_from([0.0, 2.0, -2.0, 1e-310, -5e-324]),
+    k=turns,
+    m=st.lists(st.sampled_from([0.0, 1e-310, 1.0]), min_size=4, max_size=4),
+    signs=st.lists(st.booleans(), min_size=4, max_size=4),
+)
+@example(px=0.0, py=1e-310, k=0, m=[0.0, 0.0, 0.0, 0.0], signs=[False, True, False, False])
+def test_angle_of_keeps_solutions_with_signed_zero_bounds(px, py, k, m, signs):
+    """A bound of -0.0 is the same bound as +0.0: ``[0.0, -0.0]`` holds x = 0. atan2 reads
+    the sign of a zero (atan2(0, -0) = pi), which once lost the +y axis' angle pi/2."""
+    assume(px != 0.0 or py != 0.0)
+    t = MP.atan2(mpf(py), mpf(px))
+    xb = _signed(widen((px, px), m[0], m[1]), signs[:2])
+    yb = _signed(widen((py, py), m[2], m[3]), signs[2:])
+    tb = angle_box(t, k, 0.0, 0.0)
+    y2, x2, t2 = ia.angle_of(yb, xb, tb)
+    assert contains(x2, mpf(px)), (xb, yb, tb, x2, y2, t2)
+    assert contains(y2, mpf(py)), (xb, yb, tb, x2, y2, t2)
+    assert angle_kept(tb, t2, t + k * TWO_PI), (xb, yb, tb, x2, y2, t2)

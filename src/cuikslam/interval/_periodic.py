@@ -245,12 +245,18 @@ def bwd_sin(ylo: float, yhi: float, xlo: float, xhi: float) -> tuple[float, floa
 
 @jit
 def _atan2_down(v: float, u: float) -> float:
-    return max(0.0, libm_down(math.atan2(v, u)))
+    """Lower bound of the angle of (u, v) in the closed first quadrant.
+
+    ``+ 0.0`` turns a bound of -0.0 into +0.0: an interval's zero has no sign, but
+    ``atan2`` reads it (atan2(0, -0) = pi), which put a vector on the +y axis at pi.
+    """
+    return max(0.0, libm_down(math.atan2(v + 0.0, u + 0.0)))
 
 
 @jit
 def _atan2_up(v: float, u: float) -> float:
-    return min(HALF_PI_HI, libm_up(math.atan2(v, u)))
+    """Upper bound of the angle of (u, v) in the closed first quadrant (zeros unsigned)."""
+    return min(HALF_PI_HI, libm_up(math.atan2(v + 0.0, u + 0.0)))
 
 
 @jit
