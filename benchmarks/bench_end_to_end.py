@@ -208,7 +208,7 @@ def reader_writer_cost(log_path: Path, repeat: int) -> dict[str, float]:
         log = read_log_file(log_path)
         best_read = min(best_read, time.process_time() - start)
     start = time.process_time()
-    solution = solve(log, consistency="hull", time_budget=None)
+    solution = solve(log, consistency="hull", work_budget=None)
     solve_cpu = time.process_time() - start
     best_write = math.inf
     with tempfile.TemporaryDirectory() as folder:

@@ -73,7 +73,7 @@ def log_fingerprint(log: Log) -> str:
 
 def solve_kwargs(consistency: str | None) -> dict[str, Any]:
     """``{"consistency": level}`` when asked for and :func:`solve` takes it, else ``{}``;
-    plus ``time_budget=None`` (the full level is measured, not what a budget allows)."""
+    plus ``work_budget=None`` (the full level is measured, not what a budget allows)."""
     parameters = set(inspect.signature(solve).parameters)
     try:  # the options are fields of SolveOptions since it exists
         from cuikslam.options import SolveOptions
@@ -99,7 +99,7 @@ def compute_inner_hull(seed: int, random_starts: int = 3, refine: int = 3) -> di
     log, _ = simulate_paper(seed)
     assignment = [str(o.landmark) for o in log.observations]
     start = time.perf_counter()
-    h = solve(log, time_budget=None).best
+    h = solve(log, work_budget=None).best
     hull = inner_hull(
         log, assignment, h.poses, h.landmarks, n_random=random_starts, refine=refine, seed=seed
     )

@@ -34,7 +34,7 @@ def main(argv: list[str] | None = None) -> int:
     log, truth = simulate_paper(seed=args.seed)
     boxes = {}
     for level in ("hull", "lp", "lp-split"):
-        boxes[f"level '{level}'"] = solve(log, consistency=level, time_budget=None).best.poses
+        boxes[f"level '{level}'"] = solve(log, consistency=level, work_budget=None).best.poses
     inner = json.loads(CACHE.read_text())["seeds"][str(args.seed)]
     boxes["inner hull (exact hull is between)"] = np.array(inner["poses"])
     figure, ax = plt.subplots(figsize=(7.5, 7))

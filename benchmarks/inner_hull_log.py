@@ -47,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     log = read_log_file(args.log)
     assignment = [str(o.landmark) for o in log.observations]
     start = time.perf_counter()
-    best = solve(log, consistency="lp", time_budget=None).best
+    best = solve(log, consistency="lp", work_budget=None).best
     solve_s = time.perf_counter() - start
     hull = inner_hull(
         log, assignment, best.poses, best.landmarks, n_random=args.random_starts,

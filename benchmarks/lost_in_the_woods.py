@@ -98,7 +98,7 @@ def run_calibrated(path: Path, level: str, every_observation: bool, margin: floa
         path, unknown=False, bounds=calibration.bounds, every_observation=every_observation
     )
     t2 = time.perf_counter()
-    solution = solve(log, consistency=level, certify_limit=0, time_budget=None)
+    solution = solve(log, consistency=level, certify_limit=0, work_budget=None)
     t3 = time.perf_counter()
     (hyp,) = solution.hypotheses
     report = check_truth(hyp, truth.pose_ids, truth.poses_xyt)

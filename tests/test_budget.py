@@ -1,30 +1,47 @@
-"""Every stage has a budget: cut anywhere, the result stays sound and says what it reached.
+"""Every stage has a budget: cut anywhere, the result stays sound and says what it reached;
+and a budget of work gives the same result at any load.
 
-Deadlines are replaced by counters (the n-th look at the clock says "expired"), so each
-cut point is reached deterministically, without timed assertions.
+Some tests replace ``expired`` by counters (the n-th look says "expired"), so each cut
+point is reached deterministically, without timed assertions.
 """
 
 from __future__ import annotations
 
 import ast
 import itertools
+import multiprocessing
 import os
 import subprocess
 import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from cuikslam.budget import deadline_after, expired, portion, remaining
+from cuikslam.budget import (
+    Budget,
+    capped,
+    deadline_after,
+    expired,
+    portion,
+    remaining,
+    spend,
+    work_budget_for,
+)
 from cuikslam.cli.main import build_parser
 from cuikslam.graph import KinematicGraph
 from cuikslam.hypotheses.witness import certify
+from cuikslam.log import read_log_file
 from cuikslam.narrowing import consistency, lp_bounds, propagate, sweeps
 from cuikslam.narrowing.consistency import BUDGET_SUFFIX, StrengthenReport, strengthen
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, Arrays, Status
+from cuikslam.results.io import solution_to_json
 from cuikslam.results.solution import NOT_REFUTED, PROVEN, check_truth
 from cuikslam.simulate import simulate_paper
 from cuikslam.solver import solve
+
+REPRO = Path(__file__).parent / "data" / "repro"
 
 
 def _arrays(log) -> tuple[KinematicGraph, Arrays, np.ndarray, np.ndarray]:
@@ -49,7 +66,7 @@ class _Clock:
         self.n = n
         self.calls = 0
 
-    def __call__(self, deadline: float | None) -> bool:
+    def __call__(self, deadline: Budget | None) -> bool:
         self.calls += 1
         return self.calls > self.n
 
@@ -61,7 +78,39 @@ def test_deadline_helpers() -> None:
     assert not expired(deadline_after(3600.0))
     assert portion(None, 0.5) is None
     soon, later = portion(deadline_after(100.0), 0.1), deadline_after(100.0)
-    assert soon is not None and later is not None and soon < later
+    assert soon is not None and later is not None and soon.clock < later.clock
+
+
+def test_work_shares_count_on_one_meter() -> None:
+    budget = Budget.start(work=100.0)
+    first = portion(budget, 0.8)
+    spend(first, 79.0)
+    assert not expired(first) and budget.meter.bound is None
+    spend(first, 1.0)
+    assert expired(first) and not expired(budget) and budget.meter.bound == "work"
+    second = portion(budget, 0.5)  # half of the 20 units left
+    assert second.work == 90.0 and budget.left == 20.0
+    cap = capped(budget, 5.0)
+    spend(cap, 5.0)
+    assert expired(cap) and budget.meter.spent == 85.0
+    alone = budget.alone(0.5)  # a meter of its own: what it spends does not count here
+    spend(alone, 7.5)
+    assert expired(alone) and budget.meter.spent == 85.0
+    assert remaining(budget) == float("inf")  # no wall-clock cap
+    assert work_budget_for(0) < work_budget_for(10)
+
+
+def test_a_wall_clock_cap_that_binds_is_recorded() -> None:
+    budget = Budget.start(work=1e12, seconds=0.0)
+    assert expired(budget) and budget.meter.bound == "time"
+    log, _ = simulate_paper(seed=0)
+    capped_solution = solve(log, consistency="lp", time_budget=1e-9)
+    assert capped_solution.statistics["budget_bound"] == "time"
+    assert any("may differ from run to run" in m for m in capped_solution.messages)
+    default = solve(log, consistency="lp")
+    assert default.statistics["budget_bound"] is None
+    assert default.statistics["work_budget"] == work_budget_for(len(log.pose_ids))
+    assert 0 < default.statistics["work_spent"] <= default.statistics["work_budget"]
 
 
 def test_blas_single_thread_limits_scipys_own_blas() -> None:
@@ -114,7 +163,7 @@ def test_cut_at_every_point_the_truth_stays_inside(level: str, monkeypatch) -> N
         lo, hi = lo0.copy(), hi0.copy()
         report = StrengthenReport()
         result = strengthen(arrays, lo, hi, level, DEFAULT_RTOL, DEFAULT_ROUNDS,
-                            deadline=deadline_after(3600.0), report=report)  # fmt: skip
+                            deadline=Budget.start(work=1e12), report=report)  # fmt: skip
         assert result.status is Status.CONSISTENT
         assert _contains_truth(graph, lo, hi, truth), (n, report)
         assert np.all(lo >= lo0) and np.all(hi <= hi0)  # never wider than the fixpoint
@@ -142,15 +191,16 @@ def test_lps_stopped_by_their_limits_still_give_sound_bounds(monkeypatch) -> Non
 
 def test_a_spent_budget_is_reported_not_hidden() -> None:
     log, truth = simulate_paper(seed=0)
-    spent = solve(log, consistency="lp", time_budget=1e-9)
+    spent = solve(log, consistency="lp", work_budget=1.0)
     assert spent.consistency == "hull" and spent.best.consistency == "hull"
     assert spent.best.status == NOT_REFUTED and spent.best.witness is None
     assert spent.statistics["lp_budget_exhausted"] == 1
     assert spent.statistics["witness_budget_exhausted"] == 1
-    assert any("time budget" in m for m in spent.messages)
+    assert spent.statistics["budget_bound"] == "work"
+    assert any("budget ran out" in m for m in spent.messages)
     assert any("witness search stopped" in m for m in spent.messages)
     assert check_truth(spent.best, truth.pose_ids, truth.poses_xyt).ok
-    unlimited = solve(log, consistency="lp", time_budget=None)
+    unlimited = solve(log, consistency="lp", work_budget=None)
     assert unlimited.consistency == "lp" and unlimited.best.status == PROVEN
     assert unlimited.statistics["lp_budget_exhausted"] == 0
     assert not any("budget" in m for m in unlimited.messages)
@@ -158,7 +208,7 @@ def test_a_spent_budget_is_reported_not_hidden() -> None:
 
 def test_the_witness_work_limit_leaves_the_hypothesis_not_refuted() -> None:
     log, _ = simulate_paper(seed=0)
-    solution = solve(log, consistency="hull", certify_limit=0, time_budget=None)
+    solution = solve(log, consistency="hull", certify_limit=0, work_budget=None)
     stats = certify(log, solution, max_evaluations=0)
     assert stats.out_of_work and not stats.out_of_time
     assert solution.best.status == NOT_REFUTED
@@ -169,17 +219,60 @@ def test_the_witness_work_limit_leaves_the_hypothesis_not_refuted() -> None:
 
 
 @pytest.mark.parametrize(
-    ("text", "value"),
-    [("2.5", 2.5), ("0.01", 0.01), ("none", None), ("inf", None), ("auto", "auto")],
+    ("text", "value"), [("2.5", 2.5), ("0.01", 0.01), ("none", None), ("inf", None)]
 )
-def test_time_budget_option(text: str, value: float | str | None) -> None:
-    args = build_parser().parse_args(["solve", "log.jsonl", "--time-budget", text])
-    assert args.time_budget == value
-    assert build_parser().parse_args(["solve", "log.jsonl"]).time_budget == "auto"
+@pytest.mark.parametrize("command", ["solve", "paper"])
+def test_budget_options(command: str, text: str, value: float | None) -> None:
+    log = ["log.jsonl"] if command == "solve" else []
+    parse = build_parser().parse_args
+    assert parse([command, *log, "--time-budget", text]).time_budget == value
+    assert parse([command, *log, "--work-budget", text]).work_budget == value
+    assert parse([command, *log, "--work-budget", "auto"]).work_budget == "auto"
+    defaults = parse([command, *log])
+    assert defaults.time_budget is None and defaults.work_budget == "auto"
 
 
 @pytest.mark.parametrize("text", ["0", "-1", "nan", "abc", ""])
-def test_bad_time_budgets_are_refused(text: str) -> None:
+@pytest.mark.parametrize("option", ["--time-budget", "--work-budget"])
+def test_bad_budgets_are_refused(option: str, text: str) -> None:
     with pytest.raises(SystemExit) as caught:
-        build_parser().parse_args(["solve", "log.jsonl", "--time-budget", text])
+        build_parser().parse_args(["solve", "log.jsonl", option, text])
     assert caught.value.code == 2
+
+
+def _busy(seconds: float) -> None:
+    end = time.perf_counter() + seconds
+    while time.perf_counter() < end:
+        pass
+
+
+def _without_timings(doc: dict) -> dict:
+    return {k: v for k, v in doc.items() if k != "timings"}
+
+
+def test_the_same_log_gives_the_same_result_beside_cpu_bound_processes() -> None:
+    """The seed's experiment with ids dropped, at a work budget that cuts its stages (the
+    search's stronger level and the witness search): the result JSON, timings aside, is
+    the same alone and beside two CPU-bound processes. Nothing here depends on how fast
+    the machine runs: only whether the verdict is the same."""
+    log, _ = simulate_paper(seed=0, unknown=True)
+    options = {"work_budget": 4e5}
+    alone = solution_to_json(solve(log, **options))
+    assert alone["statistics"]["budget_bound"] == "work"
+    with multiprocessing.get_context("spawn").Pool(2) as pool:
+        busy = pool.map_async(_busy, [20.0, 20.0])
+        loaded = [solution_to_json(solve(log, **options)) for _ in range(2)]
+        pool.terminate()
+    del busy
+    for doc in loaded:
+        assert _without_timings(doc) == _without_timings(alone)
+
+
+def test_the_repro_log_that_hung_the_lp_level_stops_on_its_work_budget() -> None:
+    """``lp-slow-or-hang.jsonl`` once ran for more than 10 minutes at ``lp-split`` with
+    certify off: under a work budget it stops, and the same way twice."""
+    log = read_log_file(REPRO / "lp-slow-or-hang.jsonl")
+    first = solve(log, consistency="lp-split", certify_limit=0, work_budget=2e5)
+    second = solve(log, consistency="lp-split", certify_limit=0, work_budget=2e5)
+    assert first.statistics["budget_bound"] == "work"
+    assert _without_timings(solution_to_json(first)) == _without_timings(solution_to_json(second))

@@ -126,7 +126,7 @@ def test_a_proven_hypothesis_meets_the_class_priors() -> None:
     path = Path(__file__).parent / "data" / "found" / "min-separation-proven-wrong.jsonl"
     log = read_log_file(path)
     separation = Fraction(log.class_priors["door"].min_separation)
-    proven = [h for h in solve(log, time_budget=5.0).hypotheses if h.status == PROVEN]
+    proven = [h for h in solve(log, work_budget=3.5e6).hypotheses if h.status == PROVEN]
     assert proven
     for h in proven:
         xy = [tuple(map(Fraction, p)) for p in h.witness["landmarks_xy"]]

@@ -166,6 +166,6 @@ def test_synthetic_surveyed_map_is_matched_by_the_search(tmp_path):
     for prior, (x, y) in zip(priors, posts, strict=True):
         assert _inside(x, prior.x) and _inside(y, prior.y)
         assert prior.x[1] - prior.x[0] < 0.1 + 1e-12
-    solution = solve(log, SolveOptions(consistency="hull", time_budget=60))
+    solution = solve(log, SolveOptions(consistency="hull", work_budget=4e7))
     assert solution.complete
     assert rank_of(solution.hypotheses, truth.assignment) is not None

@@ -220,7 +220,7 @@ def test_a_batch_of_logs_gives_one_result_per_log(client) -> None:
     options = {
         "consistency": "hull",
         "certify_limit": 0,
-        "time_budget": None,
+        "work_budget": None,
         "strengthen_during": 0,
     }
     batch = solve_batch(logs, client, **options)
@@ -301,8 +301,6 @@ def test_cli_scheduler_runs_the_search_on_an_existing_cluster(tmp_path: Path) ->
         "hull",
         "--strengthen-during",
         "0",
-        "--time-budget",
-        "2",
     ]
     alone = subprocess.run(args, capture_output=True, text=True, timeout=300, check=False)
     with distributed.LocalCluster(

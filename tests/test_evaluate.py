@@ -281,7 +281,7 @@ def test_the_pose_hull_is_paired_with_poses_by_id_not_by_first_mention() -> None
         ],
         path="hull.jsonl",
     )
-    solution = solve(log, time_budget=10)
+    solution = solve(log, work_budget=7e6)
     assert solution.complete and solution.best.pose_ids == [5, 1]
     truth = _truth_from_json(
         {

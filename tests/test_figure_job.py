@@ -17,7 +17,7 @@ PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 @pytest.fixture(scope="module")
 def paper_solution():
     log, truth = simulate_paper(seed=0)
-    return solve(log, consistency="hull", certify_limit=0, time_budget=None), truth
+    return solve(log, consistency="hull", certify_limit=0, work_budget=None), truth
 
 
 @pytest.mark.parametrize("child", [True, False])

@@ -42,7 +42,7 @@ def _reading(bearing_centre: float) -> str:
 @pytest.mark.parametrize(("centre", "best"), [(0.0, "A"), (math.atan2(0.3, 2.0), "B")])
 def test_the_door_the_reading_points_at_ranks_first(centre: float, best: str) -> None:
     log = parse_log_lines([*MAP, _reading(centre)])
-    solution = solve(log, certify_limit=0, time_budget=None)
+    solution = solve(log, certify_limit=0, work_budget=None)
     assert sorted(h.assignment[0] for h in solution.hypotheses) == ["A", "B"]
     first, second = solution.hypotheses
     assert first.assignment == [best]
@@ -56,7 +56,7 @@ def test_fit_is_the_least_squares_cost_in_half_widths() -> None:
     (half-width 0.01 m), so the cost is the minimum over d of ((0.05 - d) / 0.15)^2 +
     (d / 0.01)^2 = 0.05^2 / (0.15^2 + 0.01^2)."""
     log = parse_log_lines([*MAP, _reading(0.0)])
-    solution = solve(log, certify_limit=0, time_budget=None)
+    solution = solve(log, certify_limit=0, work_budget=None)
     [h] = [h for h in solution.hypotheses if h.assignment == ["A"]]
     cost, params = fit_cost(HypothesisModel(log, h.assignment), h)
     assert params is not None
@@ -65,7 +65,7 @@ def test_fit_is_the_least_squares_cost_in_half_widths() -> None:
 
 def test_a_spent_budget_leaves_the_order_to_box_size_and_says_so() -> None:
     log = parse_log_lines([*MAP, _reading(0.0)])
-    solution = solve(log, certify_limit=0, time_budget=None)
+    solution = solve(log, certify_limit=0, work_budget=None)
     for h in solution.hypotheses:
         h.fit = math.nan
     solution.messages.clear()
@@ -102,7 +102,7 @@ def test_rank_key_puts_proof_before_fit_and_fit_before_box_size() -> None:
 
 def test_fit_is_written_and_read_back(tmp_path) -> None:
     log = parse_log_lines([*MAP, _reading(0.0)])
-    solution = solve(log, certify_limit=0, time_budget=None)
+    solution = solve(log, certify_limit=0, work_budget=None)
     path = tmp_path / "result.json"
     write_result_file(solution, path)
     again = read_result_file(path)
@@ -117,7 +117,7 @@ def test_fit_is_written_and_read_back(tmp_path) -> None:
 def test_an_outlier_is_fitted_as_if_its_reading_were_not_in_the_log() -> None:
     lines = [*MAP, _reading(0.0), _reading(0.0).replace('"pose": 0', '"pose": 0, "landmark": "B"')]
     log = parse_log_lines(lines)
-    solution = solve(log, certify_limit=0, time_budget=None)
+    solution = solve(log, certify_limit=0, work_budget=None)
     h = solution.hypotheses[0]
     taken = Hypothesis(**{**h.__dict__, "assignment": [OUTLIER, "B"], "fit": math.nan})
     solution.hypotheses = [taken]
@@ -149,7 +149,7 @@ def test_the_best_fitting_survivor_is_reported_even_beyond_max_hypotheses() -> N
     search = solve_unknown(log, max_hypotheses=1)
     assert [h.assignment for h in search.hypotheses] == [["B"]]
     assert search.unreported == [["A"]]
-    solution = solve(log, certify_limit=0, time_budget=None, max_hypotheses=1)
+    solution = solve(log, certify_limit=0, work_budget=None, max_hypotheses=1)
     [h] = solution.hypotheses
     assert h.assignment == ["A"]
     assert solution.statistics["promoted_hypotheses"] == 1
@@ -158,10 +158,10 @@ def test_the_best_fitting_survivor_is_reported_even_beyond_max_hypotheses() -> N
     labelled = parse_log_lines(
         [*NEAR_CONTRADICTION[:-1], _reading(0.0)[:-1] + ', "landmark": "A"}']
     )
-    [alone] = solve(labelled, certify_limit=0, time_budget=None, consistency="hull").hypotheses
+    [alone] = solve(labelled, certify_limit=0, work_budget=None, consistency="hull").hypotheses
     assert np.array_equal(h.poses, alone.poses)
     assert np.array_equal(h.landmarks, alone.landmarks)
-    both = solve(log, certify_limit=0, time_budget=None, max_hypotheses=2).hypotheses
+    both = solve(log, certify_limit=0, work_budget=None, max_hypotheses=2).hypotheses
     assert [b.assignment for b in both] == [["A"], ["B"]]
     assert h.fit == pytest.approx(both[0].fit, rel=1e-6)
     assert both[0].fit < both[1].fit
@@ -186,14 +186,14 @@ def test_a_promoted_survivor_gets_the_stronger_level_from_its_labelled_log() -> 
     search: the stronger level narrows its labelled log, to the boxes a known-correspondence
     solve of that log gives at the same level."""
     log = parse_log_lines(NEAR_CONTRADICTION)
-    solution = solve(log, certify_limit=0, time_budget=None, max_hypotheses=1, consistency="lp")
+    solution = solve(log, certify_limit=0, work_budget=None, max_hypotheses=1, consistency="lp")
     [h] = solution.hypotheses
     assert h.assignment == ["A"] and solution.statistics["promoted_hypotheses"] == 1
     assert h.consistency == "lp" == solution.consistency
     labelled = parse_log_lines(
         [*NEAR_CONTRADICTION[:-1], _reading(0.0)[:-1] + ', "landmark": "A"}']
     )
-    [alone] = solve(labelled, certify_limit=0, time_budget=None, consistency="lp").hypotheses
+    [alone] = solve(labelled, certify_limit=0, work_budget=None, consistency="lp").hypotheses
     assert np.array_equal(h.poses, alone.poses)
     assert np.array_equal(h.landmarks, alone.landmarks)
 
@@ -231,7 +231,7 @@ def test_a_declared_outlier_among_named_readings_never_becomes_a_hard_constraint
     lines = [*NEAR_CONTRADICTION, tree, '{"type": "outliers", "at_most": 1}']
     for options in [{"max_hypotheses": 1}, {"max_hypotheses": 2}]:
         solution = solve(
-            parse_log_lines(lines), certify_limit=0, time_budget=None, consistency="lp",
+            parse_log_lines(lines), certify_limit=0, work_budget=None, consistency="lp",
             **options,
         )  # fmt: skip
         assert solution.hypotheses

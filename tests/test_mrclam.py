@@ -321,7 +321,7 @@ def test_the_surveyed_map_becomes_landmark_records_that_the_search_matches(tmp_p
         box = priors[f"L{s}"]
         assert _inside(x, box.x) and _inside(y, box.y)
         assert box.x[1] - box.x[0] == pytest.approx(0.04, rel=1e-9)
-    solution = solve(log, SolveOptions(consistency="hull", time_budget=60))
+    solution = solve(log, SolveOptions(consistency="hull", work_budget=4e7))
     assert solution.complete
     assert rank_of(solution.hypotheses, truth.assignment) is not None
     assert all(a in priors for h in solution.hypotheses for a in h.assignment)

@@ -157,7 +157,7 @@ def test_a_log_built_in_code_with_the_reserved_id_is_refused_by_solve() -> None:
         ]
     )  # fmt: skip
     with pytest.raises(InputFileError, match='landmark id "outlier" is reserved'):
-        solve(log, time_budget=5)
+        solve(log, work_budget=3.5e6)
 
 
 def test_a_bad_outliers_record_exits_2(tmp_path: Path) -> None:
@@ -176,7 +176,7 @@ def test_every_key_of_the_outliers_is_documented() -> None:
     log = parse_log_lines(
         [PRIOR, '{"type": "outliers", "at_most": 1}', MARK, MOVE, sighting(1, 9.0, 9.5)]
     )
-    document = solution_to_json(solve(log, consistency="hull", time_budget=None))
+    document = solution_to_json(solve(log, consistency="hull", work_budget=None))
     assert document["outliers"]["proven"]  # every key of a proven outlier is seen
     named = set(re.findall(r"[`\"]([a-z_]+)[`\"]", DOC.read_text(encoding="utf-8")))
     keys = _keys({"outliers": document["outliers"], "statistics": document["statistics"]})
@@ -225,7 +225,7 @@ def test_import_mrclam_declares_outliers(tmp_path: Path, capsys) -> None:
     assert [(b.at_most, b.window, b.line) for b in log.outlier_bounds] == [(2, None, 1), (1, 5, 2)]
     from cuikslam.solver import solve
 
-    solution = solve(log, consistency="hull", time_budget=None)  # and it solves with them
+    solution = solve(log, consistency="hull", work_budget=None)  # and it solves with them
     assert solution.outliers["declared"][1] == {"at_most": 1, "window": 5, "line": 2}
     capsys.readouterr()
     assert main([*base, "--unknown", "--outliers", "2"]) == 0  # the search's outlier option

@@ -291,7 +291,7 @@ def test_no_witness_proves_a_hypothesis_with_more_outliers_than_declared() -> No
         ],
         path="window.jsonl",
     )
-    solution = solve(log, time_budget=30)
+    solution = solve(log, work_budget=2e7)
     proven_outliers = [p["observation"] for p in solution.outliers["proven"]]
     assert proven_outliers == [0]
     too_many = [h for h in solution.hypotheses if h.outliers == [1]]

@@ -141,7 +141,7 @@ def test_parts_keep_the_truth(world: World) -> None:
         patch.setattr(parts_module, "MIN_PART_WINDOWS", 1)
         log = world.log("all")
         assert log_violations(log, world.truth) == []
-        solution = solve(log, consistency="lp", certify_limit=0, time_budget=None, threads=2)
+        solution = solve(log, consistency="lp", certify_limit=0, work_budget=None, threads=2)
     assert not solution.refuted, solution.messages
     h = solution.hypotheses[0]
     assert h.consistency == "lp"

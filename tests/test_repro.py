@@ -48,7 +48,7 @@ def _compiled() -> None:
     """Compile the kernels first: a cold numba cache costs tens of seconds, which the solve's
     time budget would count (a cold start is not what these tests are about)."""
     for path in CASES:
-        solve(read_log_file(path), time_budget=None, certify_limit=0)
+        solve(read_log_file(path), work_budget=None, certify_limit=0)
 
 
 def truth_of(log_path: Path) -> Truth:

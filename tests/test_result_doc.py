@@ -34,8 +34,8 @@ def _keys(document: object, parent: str = "") -> set[str]:
 
 @pytest.fixture(scope="module")
 def documents() -> list[dict]:
-    known = solve(simulate_paper(seed=0)[0], consistency="hull", time_budget=None)
-    unknown = solve(simulate_paper(seed=0, unknown=True)[0], consistency="hull", time_budget=10)
+    known = solve(simulate_paper(seed=0)[0], consistency="hull", work_budget=None)
+    unknown = solve(simulate_paper(seed=0, unknown=True)[0], consistency="hull", work_budget=7e6)
     return [solution_to_json(known), solution_to_json(unknown)]
 
 

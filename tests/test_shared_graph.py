@@ -16,7 +16,8 @@ from cuikslam.hypotheses import _shared, search, solve_unknown
 from cuikslam.hypotheses import survivors as after_search
 from cuikslam.hypotheses._gates import gate
 from cuikslam.hypotheses._shared import EMPTY_OVERLAY, Overlay, SharedGraph
-from cuikslam.hypotheses.explorer import Budget, Explorer, Node
+from cuikslam.hypotheses.explorer import Explorer, Node
+from cuikslam.hypotheses.tree import SearchLimit
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.search import explore
 from cuikslam.narrowing._factors import fresh_memory
@@ -30,7 +31,7 @@ def _explored(log, max_nodes: int = 10**6) -> tuple[Explorer, Node, object]:
     explorer = Explorer(build_problem(log), DEFAULT_RTOL, "hull", 0, local=False)
     root = explorer.root()
     assert root is not None
-    return explorer, root, explore(explorer, root, Budget(max_nodes=max_nodes), 10**6)
+    return explorer, root, explore(explorer, root, SearchLimit(max_nodes=max_nodes), 10**6)
 
 
 def _full_copy_child(

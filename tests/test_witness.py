@@ -67,7 +67,7 @@ def closed_paper_loop(seed: int) -> tuple[Log, list[str]]:
 @pytest.mark.parametrize("seed", range(5))
 def test_paper_true_assignment_is_proven(seed: int) -> None:
     log, _ = simulate_paper(seed)
-    solution = solve(log, time_budget=None)  # no clock: a loaded machine cannot fail it
+    solution = solve(log, work_budget=None)  # no clock: a loaded machine cannot fail it
     certify(log, solution)
     h = solution.best
     assert h.status == PROVEN
@@ -486,7 +486,7 @@ def test_sensor_rows_per_pose_keep_the_objective() -> None:
 
 def test_certify_names_the_undecided_hypotheses() -> None:
     log, _ = simulate_paper(seed=0, unknown=True)
-    solution = solve(log, certify_limit=0, time_budget=None)
+    solution = solve(log, certify_limit=0, work_budget=None)
     assert len(solution.hypotheses) == 2
     stats = certify(log, solution, max_evaluations=1)
     assert stats.out_of_work
@@ -503,7 +503,7 @@ def test_every_survivor_of_the_seed_experiment_is_proven() -> None:
     """The seed's experiment without ids: both survivors get a verified witness, among them
     the five-landmark one whose solution set is far from its box centres."""
     log, _ = simulate_paper(seed=0, unknown=True)
-    solution = solve(log, time_budget=None)
+    solution = solve(log, work_budget=None)
     assert solution.complete
     assert [h.status for h in solution.hypotheses] == [PROVEN, PROVEN]
     assert sorted(h.n_landmarks for h in solution.hypotheses) == [4, 5]
@@ -514,7 +514,7 @@ def test_certify_shares_a_total_work_limit() -> None:
     """The hypotheses share ``max_total_evaluations``: the search stops between rounds once
     they have used it, and says so."""
     log, _ = simulate_paper(seed=0, unknown=True)
-    solution = solve(log, certify_limit=0, time_budget=None)
+    solution = solve(log, certify_limit=0, work_budget=None)
     stats = certify(log, solution, max_total_evaluations=1)
     assert stats.out_of_work and not stats.out_of_time
     assert stats.starts <= 4  # the first round (two starts each at most), then the limit
@@ -581,7 +581,7 @@ def test_a_point_prior_on_a_later_pose_anchors_the_witness() -> None:
         '{"type": "observation", "pose": 2, "class": "post", "range": [1.9, 2.1], '
         '"bearing": [-0.1, 0.1], "landmark": "A"}',
     ]
-    [h] = solve(parse_log_lines(lines), time_budget=30).hypotheses
+    [h] = solve(parse_log_lines(lines), work_budget=2e7).hypotheses
     assert h.status == PROVEN
     assert h.witness is not None
     assert h.witness["poses_xyt"][h.pose_ids.index(2)].tolist() == [2.0, 1.0, 0.5]

@@ -279,7 +279,7 @@ def _moved(world: MotionWorld, rng: random.Random) -> Log:
 def _never_verified(seed: int, n_poses: int) -> None:
     world = motion_world(seed, n_poses, error=0.02)
     log = _moved(world, random.Random(seed))
-    assume(solve(log, time_budget=None).refuted)  # provably impossible
+    assume(solve(log, work_budget=None).refuted)  # provably impossible
     model = HypothesisModel(log, world.assignment)
     assert verified_box(model, _true_params(world)) is None
     point = find_witness(log, world.assignment, seed=seed)
@@ -331,7 +331,7 @@ def test_lost_in_the_woods_window_is_proven_consistent(tmp_path: Path) -> None:
     log = read_log_file(out)
     assert log.relative_poses and all(o.offset is not None for o in log.observations)
     assert HypothesisModel(log, [str(o.landmark) for o in log.observations]).problems == []
-    solution = solve(log, time_budget=None)  # no clock: the search's work limit only
+    solution = solve(log, work_budget=None)  # no clock: the search's work limit only
     assert [h.status for h in solution.hypotheses] == [PROVEN]
 
 

@@ -1,133 +1,246 @@
-"""Time budgets: every stage of a solve that could run long stops at a deadline.
+"""Budgets: every stage of a solve that could run long stops when its share is spent.
 
-A *deadline* is a point on the :func:`time.perf_counter` clock (a float), or None for no
-limit. Stages take one as a keyword argument (``deadline=``), check it between units of
-work (an LP, a window of LPs, a local optimisation) and, when it has passed, stop with
-whatever *sound* result they have: boxes narrowed so far (every narrowing step keeps every
+A solve's budget is counted in *work units*, not seconds, so that the same log, options and
+version give the same result on any machine and at any load. Each stage spends units as it
+works (:data:`COSTS` says what one unit is worth in each), checks :func:`expired` between
+its units of work (an LP, a search node, a residual evaluation) and, once it has, stops with
+whatever *sound* result it has: boxes narrowed so far (every narrowing step keeps every
 solution, so stopping early only leaves boxes wider), or a hypothesis left ``not refuted``
-(never claimed proven). They say so in their report, so the result can be honest about
-what was reached.
+(never claimed proven). It says so in its report, so the result is honest about what was
+reached.
 
-:func:`cuikslam.solver.solve` turns its ``time_budget`` (seconds for the whole solve) into
-deadlines for its stages: the stronger consistency level may use the first
-``STRENGTHEN_SHARE`` of the budget, the witness search what is left.
+A wall-clock cap (``time_budget``, seconds) may be set as well: the first limit reached
+stops the stage, and :attr:`Meter.bound` records which one did. When the clock binds, the
+result depends on the machine and may differ from run to run; the result says so.
+
+A :class:`Budget` is passed to the stages as their ``deadline`` argument (None: no limit).
+:func:`cuikslam.solver.solve` makes one per solve and hands each stage its share with
+:func:`portion` (the stronger level ``STRENGTHEN_SHARE`` of what hull narrowing left, the
+witness search the rest).
+
+Examples
+--------
+>>> budget = Budget.start(work=100)
+>>> stage = portion(budget, 0.5)
+>>> spend(stage, 60)
+>>> expired(stage), expired(budget), budget.meter.spent, budget.meter.bound
+(True, False, 60.0, 'work')
 """
 
 from __future__ import annotations
 
 import math
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass, field
 
 __all__ = [
-    "COMMAND_TARGET",
-    "DEFAULT_TIME_BUDGET",
-    "MIN_COMMAND_BUDGET",
-    "SECONDS_PER_POSE",
-    "STRENGTHEN_SHARE",
+    "COSTS",
+    "DEFAULT_WORK_BUDGET",
+    "WORK_PER_POSE",
+    "Budget",
+    "Meter",
     "OutOfTime",
     "blas_single_thread",
-    "command_budget",
+    "capped",
     "deadline_after",
     "expired",
     "portion",
     "remaining",
+    "spend",
+    "work_budget_for",
 ]
 
-DEFAULT_TIME_BUDGET = 2.0
-"""Seconds a solve may take by default (``cuikslam solve --time-budget``).
-
-Chosen so that ``cuikslam solve`` on a short log finishes within a few seconds end to end,
-start-up (Python, the solver's imports, its compiled kernels) included; the figures are
-measured by ``benchmarks/bench_end_to_end.py`` and reported in the README."""
-COMMAND_TARGET = 4.0
-"""Seconds ``cuikslam solve`` aims at end to end with its default ``--time-budget auto``:
-the solve gets what start-up (imports, loading the compiled kernels) left of it..."""
-MIN_COMMAND_BUDGET = 1.0
-"""...but at least this much..."""
-SECONDS_PER_POSE = 0.15
-"""...and at least this much per pose of the log. The default level's LP sweeps cost a
-roughly constant time per pose (measured by ``benchmarks/bench_long_logs.py``, figures
-in the README), so a long log gets time in proportion: its first sweep reaches the end of
-the log, and the result says ``lp (budget)`` when the later sweeps were cut."""
+DEFAULT_WORK_BUDGET = 2.5e6
+"""Work units a solve may spend by default (``cuikslam solve --work-budget``), on top of
+``WORK_PER_POSE`` per pose. Sized so that the seed's experiment with ids dropped is
+decided (both survivors proven, ``lp`` reached) in about the time the former 2 s budget
+took on the 2-core machine of the README's benchmarks; ``benchmarks/bench_budget.py``
+measures the units per second of each stage."""
+WORK_PER_POSE = 1.5e5
+"""Work units per pose of the log added to ``DEFAULT_WORK_BUDGET``: the ``lp`` level's
+sweeps cost about the same per pose, so a long log gets work in proportion (its first
+sweep reaches the end of the log; the result says ``lp (budget)`` when later sweeps were
+cut)."""
+COSTS = {
+    "operator": 1.0,
+    "lp_entry": 1.5,
+    "node": 200.0,
+    "residual": 12.0,
+    "bisection_part": 50.0,
+}
+"""Work units of one unit of work of each stage: a narrowing operator applied once; each
+row and column of an LP solved (an LP of r rows and c columns costs ``(r + c) *
+lp_entry``); a search node expanded (beside its propagation's operators); one residual
+of a least-squares evaluation (witness search and fit); a part of a bisection narrowed
+(beside its operators). Measured so that a unit is about a microsecond of this machine in
+each stage (``benchmarks/bench_budget.py``); what matters is only that each is a fixed
+count of the same work on every machine."""
 STRENGTHEN_SHARE = 0.7
-"""Fraction of the time left after hull narrowing that the stronger level may use; the
+"""Fraction of the budget left after hull narrowing that the stronger level may use; the
 witness search gets the rest (and whatever the stronger level did not need)."""
 
 
 class OutOfTime(Exception):
-    """Raised inside a stage's inner loop when its deadline has passed (caught by the stage)."""
+    """Raised inside a stage's inner loop when its budget is spent (caught by the stage)."""
 
 
-def command_budget(spent: float, n_poses: int) -> float:
-    """Seconds a solve gets under ``cuikslam solve --time-budget auto``.
+@dataclass(eq=False)
+class Meter:
+    """The work a solve has spent, shared by every share of its budget."""
 
-    Parameters
+    spent: float = 0.0
+    """Work units spent so far."""
+    bound: str | None = None
+    """The first limit that stopped a stage: ``"work"``, ``"time"`` or None."""
+    started: float = field(default_factory=time.perf_counter)
+    _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
+
+    def add(self, units: float) -> None:
+        """Count ``units`` more (thread-safe: the ``lp`` sweeps of a long log run parts
+        in threads)."""
+        with self._lock:
+            self.spent += units
+
+    def note(self, limit: str) -> None:
+        """Record that ``limit`` stopped a stage (the first one recorded stays)."""
+        if self.bound is None:
+            self.bound = limit
+
+
+@dataclass(frozen=True, eq=False)
+class Budget:
+    """What a stage may spend: the meter reading it stops at, and an optional wall clock.
+
+    Attributes
     ----------
-    spent : float
-        Seconds the command has already spent (start-up, reading the log).
-    n_poses : int
-        Poses in the log.
-
-    Returns
-    -------
-    float
-        What start-up left of ``COMMAND_TARGET``, at least ``MIN_COMMAND_BUDGET`` and at
-        least ``SECONDS_PER_POSE`` per pose.
+    meter : Meter
+        The solve's meter, shared by every share of its budget.
+    work : float
+        The meter reading at which the stage stops (inf: no work limit).
+    clock : float or None
+        A :func:`time.perf_counter` value at which the stage stops (None: no time limit).
     """
-    return max(MIN_COMMAND_BUDGET, COMMAND_TARGET - spent, SECONDS_PER_POSE * n_poses)
+
+    meter: Meter
+    work: float = math.inf
+    clock: float | None = None
+
+    @classmethod
+    def start(cls, work: float | None = None, seconds: float | None = None) -> Budget:
+        """A new budget of ``work`` units and ``seconds`` of wall clock (None: no limit)."""
+        meter = Meter()
+        limit = math.inf if work is None else max(0.0, float(work))
+        clock = None if seconds is None or math.isinf(seconds) else meter.started + seconds
+        return cls(meter, limit, clock)
+
+    @property
+    def unlimited(self) -> bool:
+        """True when neither limit is set."""
+        return self.work == math.inf and self.clock is None
+
+    @property
+    def left(self) -> float:
+        """Work units left (never negative; inf without a work limit)."""
+        return max(0.0, self.work - self.meter.spent)
+
+    def expired(self) -> bool:
+        """True once the work is spent or the wall clock has passed (recorded on the meter)."""
+        if self.meter.spent >= self.work:
+            self.meter.note("work")
+            return True
+        if self.clock is not None and time.perf_counter() >= self.clock:
+            self.meter.note("time")
+            return True
+        return False
+
+    def share(self, fraction: float) -> Budget:
+        """A budget for a stage that may use ``fraction`` of what is left of this one."""
+        work = self.work
+        if work != math.inf:
+            work = self.meter.spent + fraction * self.left
+        clock = self.clock
+        if clock is not None:
+            now = time.perf_counter()
+            clock = now + fraction * max(0.0, clock - now)
+        return Budget(self.meter, work, clock)
+
+    def alone(self, fraction: float = 1.0) -> Budget:
+        """A budget of ``fraction`` of what is left of this one, counted on a meter of its
+        own: for work done in threads or on other processes, whose order of spending is not
+        fixed, so that what each does is the same whatever the others do. The caller adds
+        what it spent to this budget's meter when it is done."""
+        return Budget(Meter(), fraction * self.left, self.share(fraction).clock)
 
 
-def deadline_after(seconds: float | None) -> float | None:
-    """The deadline ``seconds`` from now, or None (no limit) for None or infinity.
+def work_budget_for(n_poses: int) -> float:
+    """The default work budget of a log of ``n_poses`` poses.
 
-    Parameters
-    ----------
-    seconds : float or None
-        Time allowed; negative values are treated as zero.
-
-    Returns
-    -------
-    float or None
-        A value of :func:`time.perf_counter`, or None.
+    >>> work_budget_for(10)
+    4000000.0
     """
+    return DEFAULT_WORK_BUDGET + WORK_PER_POSE * n_poses
+
+
+def capped(deadline: Budget | None, units: float) -> Budget:
+    """A budget of at most ``units`` more work, within ``deadline`` (on its meter, so that
+    the work counts against it; a meter of its own without one).
+
+    >>> stage = capped(None, 10.0)
+    >>> spend(stage, 10.0)
+    >>> expired(stage)
+    True
+    """
+    if deadline is None:
+        return Budget.start(work=units)
+    return Budget(deadline.meter, min(deadline.work, deadline.meter.spent + units), deadline.clock)
+
+
+def deadline_after(seconds: float | None) -> Budget | None:
+    """A budget of ``seconds`` of wall clock and no work limit (None for None or infinity)."""
     if seconds is None or math.isinf(seconds):
         return None
-    return time.perf_counter() + max(0.0, float(seconds))
+    return Budget.start(seconds=max(0.0, float(seconds)))
 
 
-def remaining(deadline: float | None) -> float:
-    """Seconds left before ``deadline`` (infinity without one, never negative)."""
-    if deadline is None:
+def spend(deadline: Budget | None, units: float) -> None:
+    """Count ``units`` of work against ``deadline`` (nothing without one)."""
+    if deadline is not None and units:
+        deadline.meter.add(units)
+
+
+def remaining(deadline: Budget | None) -> float:
+    """Seconds left on ``deadline``'s wall clock (infinity without one, never negative)."""
+    if deadline is None or deadline.clock is None:
         return math.inf
-    return max(0.0, deadline - time.perf_counter())
+    return max(0.0, deadline.clock - time.perf_counter())
 
 
-def expired(deadline: float | None) -> bool:
-    """True when ``deadline`` is set and has passed."""
-    return deadline is not None and time.perf_counter() >= deadline
+def expired(deadline: Budget | None) -> bool:
+    """True when ``deadline`` is set and spent (its work, or its wall clock)."""
+    return deadline is not None and deadline.expired()
 
 
-def portion(deadline: float | None, fraction: float) -> float | None:
-    """A deadline for a stage that may use ``fraction`` of the time left before ``deadline``.
+def portion(deadline: Budget | None, fraction: float) -> Budget | None:
+    """A budget for a stage that may use ``fraction`` of what ``deadline`` has left.
 
     Parameters
     ----------
-    deadline : float or None
-        The overall deadline (None: no limit, and None is returned).
+    deadline : Budget or None
+        The overall budget (None: no limit, and None is returned).
     fraction : float
         Between 0 and 1.
 
     Returns
     -------
-    float or None
-        ``now + fraction * remaining(deadline)``.
+    Budget or None
+        A share on the same meter.
     """
     if deadline is None:
         return None
-    now = time.perf_counter()
-    return now + fraction * max(0.0, deadline - now)
+    return deadline.share(fraction)
 
 
 @contextmanager

@@ -75,7 +75,6 @@ def solve_batch(
     logs: Sequence[Log],
     client: Any,
     options: SolveOptions | None = None,
-    time_budgets: Sequence[float | None] | None = None,
     **overrides: Any,
 ) -> list[Solution]:
     """Solve every log of ``logs`` on ``client``'s workers, one task per log.
@@ -88,8 +87,6 @@ def solve_batch(
         The cluster (see :func:`dask_client`).
     options : SolveOptions, optional
         The options of every solve (see :func:`cuikslam.solver.solve`).
-    time_budgets : sequence of float or None, optional
-        Each log's ``time_budget``, in place of the options' one.
     **overrides
         Fields of :class:`~cuikslam.options.SolveOptions` replacing those of ``options``.
 
@@ -113,9 +110,5 @@ def solve_batch(
     from cuikslam.solver import solve
 
     options = (options or SolveOptions()).replace(**overrides)
-    budgets = time_budgets if time_budgets is not None else [options.time_budget] * len(logs)
-    futures = [
-        client.submit(solve, log, options.replace(time_budget=budget), pure=False)
-        for log, budget in zip(logs, budgets, strict=True)
-    ]
+    futures = [client.submit(solve, log, options, pure=False) for log in logs]
     return client.gather(futures)

@@ -22,9 +22,9 @@ from __future__ import annotations
 import dataclasses
 import enum
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
-from cuikslam.budget import DEFAULT_TIME_BUDGET
+from cuikslam.budget import work_budget_for
 
 __all__ = ["Level", "SolveOptions"]
 
@@ -75,8 +75,14 @@ class SolveOptions:
         Best-ranked hypotheses that get a witness search (None: every reported one).
     rtol : float
         Relative shrink below which propagation stops requeueing an operator.
+    work_budget : float, "auto" or None
+        Work units the whole solve may spend (see :mod:`cuikslam.budget`): the same log,
+        options and version then give the same result on any machine and at any load.
+        ``"auto"``: :func:`~cuikslam.budget.work_budget_for` the log's poses; None: no
+        limit.
     time_budget : float or None
-        Seconds the whole solve may take (None: no limit).
+        An optional wall-clock cap, in seconds, on top of the work budget (None: none).
+        When it binds, the result says so, and may differ from run to run.
     threads : int or None
         Threads the ``lp`` sweeps of a long log may use (None: the cores that other
         processes are not already using, from the CPU affinity and the load average). The
@@ -89,13 +95,27 @@ class SolveOptions:
     strengthen_during: int | None = None
     certify_limit: int | None = None
     rtol: float = 1e-3
-    time_budget: float | None = DEFAULT_TIME_BUDGET
+    work_budget: float | Literal["auto"] | None = "auto"
+    time_budget: float | None = None
     threads: int | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "consistency", Level.parse(self.consistency))
+        if self.work_budget != "auto" and self.work_budget is not None:
+            if not isinstance(self.work_budget, int | float) or not self.work_budget >= 0:
+                raise ValueError(
+                    f"work_budget must be a number >= 0, 'auto' or None, got {self.work_budget!r}"
+                )
+        if self.time_budget is not None and not self.time_budget >= 0:
+            raise ValueError(f"time_budget must be >= 0 seconds or None, got {self.time_budget}")
         if self.threads is not None and self.threads < 1:
             raise ValueError(f"threads must be at least 1 (or None), got {self.threads}")
+
+    def work_for(self, n_poses: int) -> float | None:
+        """The work budget of a log of ``n_poses`` poses (``"auto"`` resolved)."""
+        if self.work_budget == "auto":
+            return work_budget_for(n_poses)
+        return None if self.work_budget is None else float(self.work_budget)
 
     def replace(self, **changes: Any) -> SolveOptions:
         """A copy with ``changes`` (TypeError on a name that is not an option)."""

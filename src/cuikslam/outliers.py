@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from cuikslam.budget import Budget
 from cuikslam.graph.encoding import KIND, OBSERVATION
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.log.records import (
@@ -224,7 +225,7 @@ def log_without_observations(log: Log, drop: set[int]) -> Log:
 
 
 def certify_without_outliers(
-    log: Log, solution: Solution, certify: Callable[..., Any], deadline: float | None
+    log: Log, solution: Solution, certify: Callable[..., Any], deadline: Budget | None
 ) -> None:
     """Try to prove the best-ranked hypothesis whose outliers, with the proven ones, meet the
     declaration consistent, with all of them left out.

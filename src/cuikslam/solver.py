@@ -6,6 +6,7 @@ the hypothesis search of :mod:`cuikslam.hypotheses` branches over correspondence
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable
 from dataclasses import replace
@@ -13,7 +14,7 @@ from functools import partial
 from typing import Any
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.budget import STRENGTHEN_SHARE, deadline_after, portion
+from cuikslam.budget import STRENGTHEN_SHARE, Budget, portion
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.hypotheses.labelled import (
     has_labelled_logs,
@@ -49,10 +50,10 @@ its time and memory grow with the square of the log). Measured on 2026-11-26: a 
 window's true hypothesis in 0.8 s, the best-ranked survivor of a 201-pose Lost in the Woods
 window in 2.6 s (with ``lsmr``, :func:`~cuikslam.hypotheses.witness.find.tr_solver_for`);
 a 401-pose window took 20 s and 1 GB, and the whole 1,262-pose run made 3 evaluations in
-219 s (before ``lsmr``). Within the cap the time budget (or, without one, the witness'
-work limit) bounds the search."""
+219 s (before ``lsmr``). Within the cap the work budget (or, without one, the witness'
+evaluation limit) bounds the search."""
 SEARCH_SHARE = 0.8
-"""Fraction of the time budget the correspondence search (with its survivors' stronger
+"""Fraction of the budget the correspondence search (with its survivors' stronger
 level) may use; the witness search gets the rest, and whatever the search did not need."""
 FIT_SHARE = 0.5
 """Share of the time left after the search that the least-squares fit of the reported
@@ -75,7 +76,7 @@ _warmed_up: set[bool | str] = set()
 def warm_up(unknown: bool = True, lp: bool = False) -> float:
     """Compile (or load from numba's cache) the kernels a solve uses, once per process.
 
-    Runs before the time budget starts, so that the first solve after installing cuikslam
+    Runs before the budget starts, so that the first solve after installing cuikslam
     spends its budget on the log rather than on compiling. ``unknown`` also loads the
     correspondence search's kernels, which a known-correspondence solve does not use
     (quick from numba's cache, far longer to compile on a first run). ``lp`` also loads
@@ -143,7 +144,8 @@ def solve(
     **overrides
         Fields of :class:`~cuikslam.options.SolveOptions` (``consistency``,
         ``max_hypotheses``, ``strengthen_limit``, ``strengthen_during``,
-        ``certify_limit``, ``rtol``, ``time_budget``) replacing those of ``options``.
+        ``certify_limit``, ``rtol``, ``work_budget``, ``time_budget``) replacing those of
+        ``options``.
 
     Returns
     -------
@@ -153,7 +155,10 @@ def solve(
 
     Notes
     -----
-    ``time_budget`` (seconds, None for no limit) bounds the whole solve. With known
+    ``work_budget`` (work units, see :mod:`cuikslam.budget`) bounds the whole solve, so
+    that the same log and options give the same result on any machine and at any load;
+    ``time_budget`` (seconds) may cap it as well, and the result then records whether the
+    clock bound (``statistics["budget_bound"]``). With known
     correspondence the fixpoint of the factors always runs to the end (it takes
     milliseconds); the stronger level may use ``STRENGTHEN_SHARE`` of the time left, and
     the witness search the rest. With unknown correspondence the search gets
@@ -173,8 +178,8 @@ def solve(
     lp = options.consistency.value != "hull" or (unknown and options.strengthen_during != 0)
     warm_up_s = warm_up(unknown, lp)
     start = time.perf_counter()
-    deadline = deadline_after(options.time_budget)
     n_poses = len(log.pose_ids)
+    deadline = Budget.start(options.work_for(n_poses), options.time_budget)
     consistency = resolve_level(options.consistency.value, n_poses)
     if log.has_unknown_correspondence:
         solution = (search or solve_unknown)(
@@ -220,7 +225,22 @@ def solve(
     solution.timings["warm_up_s"] = warm_up_s
     if options.time_budget is not None:
         solution.timings["time_budget_s"] = float(options.time_budget)
+    _record_budget(solution, deadline)
     return solution
+
+
+def _record_budget(solution: Solution, budget: Budget) -> None:
+    """Which budget the solve had, what it spent and which limit stopped a stage, if any;
+    a message when the wall clock did (the result may then differ from run to run)."""
+    stats = solution.statistics
+    stats["work_budget"] = None if budget.work == math.inf else budget.work
+    stats["work_spent"] = round(budget.meter.spent)
+    stats["budget_bound"] = budget.meter.bound
+    if budget.meter.bound == "time":
+        solution.messages.append(
+            "the wall-clock cap (--time-budget) stopped a stage before its work budget: "
+            "this result depends on how fast the machine ran, and may differ from run to run"
+        )
 
 
 def _solve_known(
@@ -228,7 +248,7 @@ def _solve_known(
     consistency: str,
     rtol: float,
     progress: ProgressCallback | None,
-    deadline: float | None,
+    deadline: Budget | None,
     threads: int | None = None,
 ) -> Solution:
     start = time.perf_counter()
@@ -307,7 +327,7 @@ def _solve_known(
 
 
 def budget_message(level: str, report: StrengthenReport) -> str:
-    """The message of a stronger level cut short by its time budget.
+    """The message of a stronger level cut short by its budget.
 
     Parameters
     ----------
@@ -322,8 +342,8 @@ def budget_message(level: str, report: StrengthenReport) -> str:
         One sentence for ``Solution.messages``.
     """
     return (
-        f"the time budget ran out during the '{level}' level: the boxes reach level "
+        f"the budget ran out during the '{level}' level: the boxes reach level "
         f"'{report.level}' ({report.lp_rounds} polytope round(s), {report.lp.solved} LPs); "
         "they are sound, only wider than the full level would make them (raise "
-        "--time-budget, or time_budget=None, for the full level)"
+        "--work-budget, or work_budget=None, for the full level)"
     )

@@ -18,7 +18,6 @@ from pathlib import Path
 
 from rich.console import Console
 
-from cuikslam.budget import command_budget
 from cuikslam.cli._common import CommandError, write_output
 from cuikslam.cluster import INSTALL_HINT
 from cuikslam.log.reader import read_log_file
@@ -67,7 +66,6 @@ def run_solve_cluster(
     console: Console,
     table: bool | None,
     options: SolveOptions,
-    time_budget: float | str | None,
     started: float | None,
     survivors_path: str | None,
 ) -> int:
@@ -81,7 +79,7 @@ def run_solve_cluster(
         run = partial(
             run_solve, log_path=log_paths[0], json_path=json_path, csv_path=csv_path,
             truth_path=truth_path, quiet=quiet, console=console, table=table, options=options,
-            time_budget=time_budget, survivors_path=survivors_path,
+            survivors_path=survivors_path,
         )  # fmt: skip
         if not cluster:
             return run(started=started)
@@ -105,7 +103,7 @@ def run_solve_cluster(
     logs = [read_log_file(p) for p in log_paths]  # every log checked before any work
     return _solve_logs(
         logs, log_paths, names, workers, scheduler, json_dir, csv_dir, quiet, console, table,
-        options, time_budget, started,
+        options,
     )  # fmt: skip
 
 
@@ -121,29 +119,18 @@ def _solve_logs(
     console: Console,
     table: bool | None,
     options: SolveOptions,
-    time_budget: float | str | None,
-    started: float | None,
 ) -> int:
     from cuikslam.cli.solve import print_solution
     from cuikslam.results.io import write_result_csv, write_result_file
     from cuikslam.solver import solve
 
-    budgets = []
-    for log in logs:
-        budget = time_budget
-        if budget == "auto":  # start-up is paid once, not per log
-            spent = 0.0 if started is None else time.perf_counter() - started
-            budget = command_budget(spent, len(log.pose_ids))
-        budgets.append(budget)
     if workers is None and scheduler is None:
-        solutions = [
-            solve(log, options, time_budget=b) for log, b in zip(logs, budgets, strict=True)
-        ]
+        solutions = [solve(log, options) for log in logs]
     else:
         from cuikslam.cluster import dask_client, solve_batch
 
         with dask_client(workers, scheduler) as client:
-            solutions = solve_batch(logs, client, options=options, time_budgets=budgets)
+            solutions = solve_batch(logs, client, options=options)
     status = 0
     for path, name, solution in zip(log_paths, names, solutions, strict=True):
         outputs = []

@@ -10,7 +10,6 @@ from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from cuikslam.budget import DEFAULT_TIME_BUDGET
 from cuikslam.cli._common import (
     EXIT_OK,
     STARTED,
@@ -60,15 +59,13 @@ def cmd_paper(args: argparse.Namespace) -> int:
         check_figure_path(args.figure)
     from cuikslam.cli.paper import run_paper
 
-    budget = args.time_budget
-    if budget == "auto":
-        budget = DEFAULT_TIME_BUDGET
     return run_paper(
         seed=args.seed,
         figure=args.figure,
         json_path=args.json,
         console=console(),
-        time_budget=budget,
+        work_budget=args.work_budget,
+        time_budget=args.time_budget,
     )
 
 
@@ -96,8 +93,9 @@ def cmd_solve(args: argparse.Namespace) -> int:
             strengthen_limit=args.strengthen_limit,
             strengthen_during=args.strengthen_during,
             threads=args.threads,
+            work_budget=args.work_budget,
+            time_budget=args.time_budget,
         ),
-        time_budget=args.time_budget,
         started=STARTED,
         survivors_path=args.survivors,
     )

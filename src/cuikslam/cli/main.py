@@ -15,12 +15,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 from cuikslam import __version__
-from cuikslam.budget import (
-    COMMAND_TARGET,
-    DEFAULT_TIME_BUDGET,
-    MIN_COMMAND_BUDGET,
-    SECONDS_PER_POSE,
-)
+from cuikslam.budget import DEFAULT_WORK_BUDGET, WORK_PER_POSE
 from cuikslam.cli._common import EXIT_INPUT, CommandError, int_at_least
 from cuikslam.cli.commands import (
     cmd_evaluate,
@@ -78,32 +73,54 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
         help="narrow a search node to level lp before it branches, during the first N "
         "decisions of the search (default: all of them; 0: off)",
     )
+    add_budget_arguments(p)
+
+
+WORK_HELP = (
+    "work units the solve may spend, shared by its stages (counted work, not seconds: the "
+    "same log and options give the same result on any machine, at any load); a stage that "
+    "runs out stops soundly and says so (boxes at a weaker level, a hypothesis left 'not "
+    "refuted', an incomplete search); 'none' for no limit; 'auto' (default): "
+    f"{DEFAULT_WORK_BUDGET:.3g} plus {WORK_PER_POSE:.3g} per pose of the log"
+)
+TIME_HELP = (
+    "an optional wall-clock cap in seconds on top of the work budget (default: none); when "
+    "it binds, the result says so, and may then differ from run to run"
+)
+
+
+def add_budget_arguments(p: argparse.ArgumentParser) -> None:
+    """``--work-budget`` and ``--time-budget``, as every solving command takes them."""
     p.add_argument(
-        "--time-budget",
-        type=_time_budget,
-        default="auto",
-        metavar="SECONDS",
-        help="seconds the solve may take, shared by its stages; a stage that runs out stops "
-        "soundly and says so (boxes at a weaker level, a hypothesis left 'not refuted', an "
-        f"incomplete search); 'none' for no limit; 'auto' (default): the command aims at "
-        f"{COMMAND_TARGET:g} s end to end, the solve gets what start-up left (at least "
-        f"{MIN_COMMAND_BUDGET:g} s, and at least {SECONDS_PER_POSE:g} s per pose of the log)",
+        "--work-budget", type=_work_budget, default="auto", metavar="UNITS", help=WORK_HELP
+    )
+    p.add_argument(
+        "--time-budget", type=_time_budget, default=None, metavar="SECONDS", help=TIME_HELP
     )
 
 
-def _time_budget(text: str) -> float | str | None:
-    """An argparse type: seconds (a positive number), ``none`` / ``inf`` for no limit, or
+def _work_budget(text: str) -> float | str | None:
+    """An argparse type: work units (a number >= 0), ``none`` / ``inf`` for no limit, or
     ``auto``."""
-    if text.strip().lower() in ("none", "inf", "infinity"):
-        return None
     if text.strip().lower() == "auto":
         return "auto"
+    return _limit(text, "work units")
+
+
+def _time_budget(text: str) -> float | None:
+    """An argparse type: seconds (a positive number), ``none`` / ``inf`` for no cap."""
+    return _limit(text, "seconds")
+
+
+def _limit(text: str, unit: str) -> float | None:
+    if text.strip().lower() in ("none", "inf", "infinity"):
+        return None
     try:
         value = float(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
+        raise argparse.ArgumentTypeError(f"not a number of {unit}: {text!r}") from None
     if not value > 0 or math.isnan(value):
-        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, got {text}")
+        raise argparse.ArgumentTypeError(f"must be a positive number of {unit}, got {text}")
     return None if math.isinf(value) else value
 
 
@@ -143,15 +160,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--figure", default="cuikslam-paper.png", help="figure to write (default %(default)s)"
     )
     p.add_argument("--json", help="also write the result JSON here")
-    p.add_argument(
-        "--time-budget",
-        type=_time_budget,
-        default="auto",
-        metavar="SECONDS",
-        help=f"seconds each solve may take ('auto': {DEFAULT_TIME_BUDGET:g} s; 'none': no "
-        "limit); survivors the witness search has not proven by then stay undecided "
-        "(a larger budget decides more of them)",
-    )
+    add_budget_arguments(p)
     p.set_defaults(func=cmd_paper)
 
     p = sub.add_parser("solve", help="solve a JSON Lines log", description="Solve a log file.")

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import sys
+from typing import Any
 
 from rich.console import Console
 from rich.table import Table
 
-from cuikslam.budget import DEFAULT_TIME_BUDGET
 from cuikslam.cli._common import check_figure_path, check_output_path, write_output
 from cuikslam.cli.figure_job import start_figure
 from cuikslam.cli.warm_up import note_compiling
@@ -29,10 +29,10 @@ def _report_truth(solution: Solution, truth: GroundTruth, console: Console) -> b
     return verdict.ok
 
 
-def _unknown_correspondence(seed: int, console: Console, time_budget: float | None) -> bool:
+def _unknown_correspondence(seed: int, console: Console, budgets: dict[str, Any]) -> bool:
     """The same experiment without landmark ids: the seed's Tables 2-6 question."""
     log, truth = simulate_paper(seed=seed, unknown=True)
-    solution = solve(log, time_budget=time_budget)
+    solution = solve(log, **budgets)
     stats = solution.statistics
     table = Table(
         title="Unknown correspondence: the robot cannot tell the doors (or the corridors) apart",
@@ -79,14 +79,20 @@ def _unknown_correspondence(seed: int, console: Console, time_budget: float | No
         )
     elif undecided:
         console.print(
-            f"{undecided} survivor(s) undecided within the time budget "
-            f"({time_budget:g} s); `cuikslam paper --time-budget 60` decides them"
-            if time_budget is not None
-            else f"{undecided} survivor(s) undecided: the witness search reached its work limit"
+            f"{undecided} survivor(s) undecided within the budget ({_spent(solution)}); "
+            "a larger --work-budget decides more of them"
         )
     for message in solution.messages:
         console.print(message)
     return _report_truth(solution, truth, console)
+
+
+def _spent(solution: Solution) -> str:
+    """What the solve spent, in words."""
+    stats = solution.statistics
+    limit = stats.get("work_budget")
+    spent = f"{stats.get('work_spent', 0):,} work units"
+    return spent if limit is None else f"{spent} of {limit:,.0f}"
 
 
 def run_paper(
@@ -95,19 +101,21 @@ def run_paper(
     figure: str | None,
     json_path: str | None,
     console: Console,
-    time_budget: float | None = DEFAULT_TIME_BUDGET,
+    work_budget: float | str | None = "auto",
+    time_budget: float | None = None,
 ) -> int:
     """Simulate the seed's experiment, solve it with and without landmark ids, report.
 
-    ``time_budget`` (seconds, None for no limit) bounds each of the two solves; deciding
-    every survivor of the unknown-correspondence part can take tens of seconds."""
+    ``work_budget`` (work units, ``"auto"`` or None) and ``time_budget`` (an optional cap
+    in seconds) bound each of the two solves (see :class:`~cuikslam.options.SolveOptions`)."""
+    budgets = {"work_budget": work_budget, "time_budget": time_budget}
     if json_path:
         check_output_path(json_path)
     if figure:
         check_figure_path(figure)
     drawing = start_figure(figure) if figure else None  # a process importing Matplotlib
     log, truth = simulate_paper(seed=seed)
-    solution = solve(log, time_budget=time_budget)
+    solution = solve(log, **budgets)
     note_compiling(solution.timings)
     if solution.refuted:  # cannot happen with a correct solver: the simulated log is consistent
         if drawing is not None:
@@ -138,7 +146,7 @@ def run_paper(
         )
     )
     ok = _report_truth(solution, truth, console)
-    ok &= _unknown_correspondence(seed, console, time_budget)
+    ok &= _unknown_correspondence(seed, console, budgets)
     if json_path:
         write_output(json_path, lambda: write_result_file(solution, json_path))
     if drawing is not None:

@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import json
-import time
 from collections.abc import Callable, Collection, Iterator, Sequence
 from contextlib import contextmanager
 
 from rich.console import Console
 
 from cuikslam._atomic import atomic_open
-from cuikslam.budget import command_budget
 from cuikslam.cli._common import CommandError, check_output_path, progress_bar, write_output
 from cuikslam.cli.warm_up import note_compiling
 from cuikslam.log.reader import read_log_file
@@ -132,7 +130,6 @@ def run_solve(
     console: Console,
     table: bool | None = None,
     options: SolveOptions | None = None,
-    time_budget: float | str | None = "auto",
     started: float | None = None,
     survivors_path: str | None = None,
     search: Callable[..., Solution] | None = None,
@@ -147,9 +144,6 @@ def run_solve(
 
     from cuikslam.solver import solve
 
-    if time_budget == "auto":  # what start-up left of the command's target, within limits
-        spent = 0.0 if started is None else time.perf_counter() - started
-        time_budget = command_budget(spent, len(log.pose_ids))
     with (
         progress_bar("solving", enabled=not quiet) as progress,
         _survivor_stream(survivors_path) as on_survivor,
@@ -158,7 +152,6 @@ def run_solve(
             log,
             options,
             progress=progress,
-            time_budget=time_budget,
             on_survivor=on_survivor,
             search=search,
         )

@@ -6,17 +6,16 @@ decisions. The ``lp`` level (:mod:`cuikslam.narrowing.consistency`) keeps them f
 tighter, but on a whole long graph it costs seconds. Before a node branches, the level is
 applied to the subgraph of the last ``WINDOW_POSES`` poses up to its decision's pose (their
 odometry, observations and negative information, in the global frame, started from the
-node's bounds), within ``SECONDS``: dropping the other constraints is sound, so the
+node's bounds), within ``WORK`` units: dropping the other constraints is sound, so the
 narrowed bounds hold for the whole hypothesis, and an empty window refutes it. The node's
 children are then made from the tighter box (:meth:`.explorer.Explorer.children`).
 """
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
+from cuikslam.budget import Budget, capped
 from cuikslam.hypotheses._shared import Overlay, SharedGraph, linked
 from cuikslam.hypotheses.local import pose_windows, window_rows
 from cuikslam.narrowing.consistency import StrengthenReport, strengthen
@@ -26,8 +25,9 @@ __all__ = ["AmbiguityLp"]
 
 WINDOW_POSES = 60
 """Poses of the window: its decision's pose and those reached just before it."""
-SECONDS = 1.0
-"""Time the level may take on one window (cut short, it is still sound, only weaker)."""
+WORK = 5.0e5
+"""Work units the level may spend on one window (cut short, it is still sound, only
+weaker): about the second it was given when budgets were seconds."""
 
 
 class AmbiguityLp:
@@ -43,10 +43,10 @@ class AmbiguityLp:
         self.rtol = rtol
 
     def narrow(
-        self, graph: SharedGraph, overlay: Overlay, pose: int, deadline: float | None
+        self, graph: SharedGraph, overlay: Overlay, pose: int, deadline: Budget | None
     ) -> tuple[Overlay | None, int]:
         """The branch of ``overlay`` with the window ending at ``pose`` narrowed to ``lp``
-        (within ``SECONDS`` and ``deadline``); None when that proves it empty. Also returns
+        (within ``WORK`` and ``deadline``); None when that proves it empty. Also returns
         the operator applications of the level's propagations."""
         local, variables, _ = window_rows(
             self._window[pose], graph.rows, graph.kinds, graph.in_base, overlay.rows,
@@ -58,10 +58,9 @@ class AmbiguityLp:
             return overlay, 0
         local = local[np.lexsort(local.T[::-1])]  # the LPs do not depend on the pool's order
         lo, hi = graph.values(overlay, variables)
-        cap = time.perf_counter() + SECONDS
         result = strengthen(
             linked(local, len(variables)), lo, hi, "lp", self.rtol,
-            DEFAULT_ROUNDS, deadline=cap if deadline is None else min(cap, deadline),
+            DEFAULT_ROUNDS, deadline=capped(deadline, WORK),
             report=StrengthenReport(),
         )  # fmt: skip
         if result.is_empty:

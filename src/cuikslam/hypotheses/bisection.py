@@ -16,11 +16,11 @@ parts that survive longest to the witness search as starting boxes.
 from __future__ import annotations
 
 import math
-import time
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from cuikslam.budget import COSTS, Budget, expired, spend
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, Arrays, narrow
 
 __all__ = ["Bisection"]
@@ -87,12 +87,12 @@ class Bisection:
         """True when no part is left to split (refuted, or only unsplittable parts)."""
         return not self.parts
 
-    def run(self, deadline: float | None, max_parts: int, max_pending: int | None = None) -> None:
+    def run(self, deadline: Budget | None, max_parts: int, max_pending: int | None = None) -> None:
         """Split parts and narrow the halves, up to ``max_parts`` narrowed halves (fewer at
         ``deadline``); give up when more than ``max_pending`` parts wait."""
         stop = self.narrowed_parts + max_parts
         while self.parts and self.narrowed_parts < stop:
-            if deadline is not None and time.perf_counter() >= deadline:
+            if expired(deadline):
                 return
             lo, hi = self.parts.pop()
             var = self._widest(lo, hi)
@@ -105,7 +105,7 @@ class Bisection:
             for a, b in ((lo[var], mid), (mid, hi[var])):
                 plo, phi = lo.copy(), hi.copy()
                 plo[var], phi[var] = a, b
-                if self._narrow(plo, phi, var):
+                if self._narrow(plo, phi, var, deadline):
                     halves.append((plo, phi))
                 else:
                     self.refuted_parts += 1
@@ -129,13 +129,15 @@ class Bisection:
             return self.parts[-1]
         return self.last_unsplit
 
-    def _narrow(self, lo: np.ndarray, hi: np.ndarray, var: int) -> bool:
-        """Narrow a part after ``var`` was split; False when it is proven empty."""
+    def _narrow(self, lo: np.ndarray, hi: np.ndarray, var: int, deadline: Budget | None) -> bool:
+        """Narrow a part after ``var`` was split, spending its work; False when it is
+        proven empty."""
         a = self.arrays
         self.narrowed_parts += 1
         result = narrow(
             a, lo, hi, a.factors_of(var), DEFAULT_RTOL, DEFAULT_ROUNDS, APPLICATIONS_PER_PART
         )
+        spend(deadline, COSTS["bisection_part"] + COSTS["operator"] * result.applications)
         return not result.is_empty
 
     def _widest(self, lo: np.ndarray, hi: np.ndarray) -> int:
@@ -164,7 +166,7 @@ FIRST_ROUND_PARTS = 8
 
 def refute_by_bisection(
     bisections: list[Bisection],
-    deadline: float | None,
+    deadline: Budget | None,
     max_parts: int,
     max_total_parts: int | None = None,
 ) -> list[bool]:
@@ -181,7 +183,7 @@ def refute_by_bisection(
     most = allotment(len(bisections), max_parts, max_total_parts)
     pending = max(MIN_PENDING, most // PENDING_SHARE)
     quota = FIRST_ROUND_PARTS
-    while deadline is None or time.perf_counter() < deadline:
+    while not expired(deadline):
         open_ = [b for b in bisections if not b.exhausted and b.narrowed_parts < most]
         if not open_:
             break

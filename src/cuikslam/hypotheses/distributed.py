@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.budget import portion
+from cuikslam.budget import COSTS, Budget, deadline_after, expired, portion, remaining, spend
 from cuikslam.hypotheses.bisection import Bisection, allotment, refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.outlier_option import OUTLIER
@@ -74,22 +74,32 @@ MAX_BATCH = 8
 
 
 # ------------------------------------------------------------------------- the client
+def _epoch(deadline: Budget | None) -> float | None:
+    """The wall-clock cap of ``deadline`` as epoch seconds, for tasks on other machines
+    (None without one). The work of the tasks is bounded by their quanta, and counted on
+    the client as their results come back, so where a budget cuts a search on a cluster
+    depends on the order in which results arrive."""
+    seconds = remaining(deadline)
+    return None if math.isinf(seconds) else time.time() + seconds
+
+
 def _refute_on_cluster(
     client: Any,
     slots: int,
     bisections: list[Bisection],
-    deadline: float | None,
+    deadline: Budget | None,
     max_parts: int,
     max_total_parts: int,
 ) -> list[bool]:
     """:func:`~.bisection.refute_by_bisection` with the bisections dealt out to ``slots``
     tasks: each keeps its share of the budget (:func:`~.bisection.allotment`), so the
-    result is the one process's. The deadline travels as seconds left (clocks of other
-    machines differ)."""
+    result is the one process's. Only the budget's wall-clock cap travels, as seconds left
+    (clocks of other machines differ): the parts bound the work."""
     if len(bisections) < 2 or slots < 2:
         return refute_by_bisection(bisections, deadline, max_parts, max_total_parts)
     each = allotment(len(bisections), max_parts, max_total_parts)
-    seconds = None if deadline is None else deadline - time.perf_counter()
+    seconds = remaining(deadline)
+    seconds = None if math.isinf(seconds) else seconds
     chunks = [list(range(i, len(bisections), slots)) for i in range(slots)]
     futures = [
         client.submit(
@@ -108,7 +118,7 @@ def _refute_on_cluster(
 def _refute_task(bisections: list[Bisection], seconds: float | None, each: int) -> list[bool]:
     """A worker's share of the survivors' bisections."""
     ensure_round_to_nearest()
-    deadline = None if seconds is None else time.perf_counter() + seconds
+    deadline = deadline_after(seconds)
     return refute_by_bisection(bisections, deadline, each, each * len(bisections))
 
 
@@ -122,7 +132,7 @@ def search_distributed(
     strengthen_during: int | None = DEFAULT_STRENGTHEN_DURING,
     rtol: float = DEFAULT_RTOL,
     progress: Callable[[int, int], None] | None = None,
-    deadline: float | None = None,
+    deadline: Budget | None = None,
     max_nodes: int | None = None,
     on_survivor: Callable[[list[str]], None] | None = None,
     local_frame: bool = True,
@@ -176,7 +186,7 @@ def search_distributed(
             key=uuid.uuid4().hex, consistency=consistency, rtol=rtol,
             strengthen_during=strengthen_during, local_frame=local_frame, keep=keep,
             all_survivors=on_survivor is not None, quantum_s=quantum_s,
-            deadline=None if searching is None else time.time() + (searching - start),
+            deadline=_epoch(searching),
         )  # fmt: skip
         results = run.on_cluster(
             client, log, prefixes, options, slots, quantum_nodes, progress, on_result
@@ -209,7 +219,7 @@ class _Run:
     """The client's side of one search: splitting, submitting, budgets, the account."""
 
     def __init__(
-        self, explorer: Explorer, deadline: float | None, max_nodes: int | None, keep: int
+        self, explorer: Explorer, deadline: Budget | None, max_nodes: int | None, keep: int
     ):
         self.explorer = explorer
         self.keep = keep
@@ -247,8 +257,8 @@ class _Run:
         return sorted((at, tuple(node.decisions())) for node, at in [*frontier, *leaves])
 
     def _exhausted(self) -> bool:
-        if self.deadline is not None and time.perf_counter() > self.deadline:
-            self._budget_hit = "time budget"
+        if expired(self.deadline):
+            self._budget_hit = f"{self.deadline.meter.bound} budget"
         elif self.max_nodes is not None and self.expanded >= self.max_nodes:
             self._budget_hit = "node budget"
         return self._budget_hit is not None
@@ -331,6 +341,11 @@ class _Run:
         self.best = merged[: self.keep]
         self.done += result.done
         self.expanded += result.expanded
+        spend(
+            self.deadline,
+            COSTS["node"] * result.expanded
+            + COSTS["operator"] * result.counts.get("operator_applications", 0),
+        )
         self.lost_on_replay += result.lost_on_replay
         self.cpu_s += result.cpu_s
         todo = sorted(result.unexplored)
@@ -347,7 +362,7 @@ class _Run:
     def stop_reason(self) -> str | None:
         if not self.left:
             return None
-        return self._budget_hit or "time budget"
+        return self._budget_hit or "work budget"
 
 
 def _merge(

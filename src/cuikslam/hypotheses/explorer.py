@@ -21,6 +21,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from cuikslam.budget import Budget
 from cuikslam.hypotheses._shared import EMPTY_OVERLAY, Overlay, SharedGraph
 from cuikslam.hypotheses.ambiguity import AmbiguityLp
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
@@ -30,7 +31,6 @@ from cuikslam.hypotheses.problem import Decision, Problem, observation_rows, reg
 from cuikslam.hypotheses.tree import (
     AMBIGUITY_LP_GAP,
     AMBIGUITY_LP_MIN_DECISIONS,
-    Budget,
     Node,
     SearchStatistics,
 )
@@ -66,7 +66,7 @@ class Explorer:
         """Nodes of the first ``during`` decisions get ``lp`` before they branch (see
         :meth:`children`)."""
         self.n_named = len(problem.named)
-        self.deadline: float | None = None
+        self.deadline: Budget | None = None
         """When the stronger level must stop (it then reports the level it reached)."""
         self.local = (
             LocalCheck(problem.pose_x, len(problem.lo), rtol, DEFAULT_ROUNDS, problem.sensor_x)

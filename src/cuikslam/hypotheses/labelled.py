@@ -18,6 +18,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from cuikslam.budget import Budget
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.log.records import Log, Observation
 from cuikslam.narrowing.consistency import StrengthenReport, strengthen
@@ -77,7 +78,7 @@ def solve_labelled(
     assignment: list[str],
     level: str = "hull",
     rtol: float = 1e-3,
-    deadline: float | None = None,
+    deadline: Budget | None = None,
 ) -> Hypothesis | None:
     """The boxes of the hypothesis ``assignment`` of ``log``, narrowed to ``level`` on its
     labelled log (:func:`labelled_log`) until ``deadline``; None when they contract to

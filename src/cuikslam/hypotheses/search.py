@@ -25,7 +25,7 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.budget import portion
+from cuikslam.budget import COSTS, Budget, portion, spend
 from cuikslam.hypotheses._shared import SharedGraph
 from cuikslam.hypotheses.bisection import refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer
@@ -40,7 +40,7 @@ from cuikslam.hypotheses.survivors import (
     unreported,
 )
 from cuikslam.hypotheses.tally import Tally
-from cuikslam.hypotheses.tree import Budget, Node
+from cuikslam.hypotheses.tree import Node, SearchLimit
 from cuikslam.log.records import Log
 from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
@@ -84,7 +84,7 @@ class _Outcome:
 def explore(
     explorer: Explorer,
     start: Node | list[Node],
-    budget: Budget,
+    budget: SearchLimit,
     keep: int,
     on_survivor: Callable[[Node], None] | None = None,
     progress: Callable[[int, int], None] | None = None,
@@ -119,8 +119,13 @@ def explore(
             if len(survivors) > 2 * (keep + reserve):
                 survivors = _best(explorer, survivors, keep + reserve)
             continue
+        applications = graph.applications
         kids, options = explorer.children(node)
         expanded += 1
+        spend(
+            budget.deadline,
+            COSTS["node"] + COSTS["operator"] * (graph.applications - applications),
+        )
         done += node.share * (options - len(kids)) / options
         stack.extend(reversed(kids))
         stats.peak_frontier = max(stats.peak_frontier, len(stack))
@@ -186,7 +191,7 @@ def solve_unknown(
     strengthen_during: int | None = DEFAULT_STRENGTHEN_DURING,
     rtol: float = DEFAULT_RTOL,
     progress: Callable[[int, int], None] | None = None,
-    deadline: float | None = None,
+    deadline: Budget | None = None,
     max_nodes: int | None = None,
     on_survivor: Callable[[list[str]], None] | None = None,
     local_frame: bool = True,
@@ -215,7 +220,7 @@ def solve_unknown(
         Relative shrink below which propagation stops requeueing an operator.
     progress : callable, optional
         Called with (done, total) as the explored share of the tree grows.
-    deadline : float, optional
+    deadline : Budget, optional
         :func:`time.perf_counter` value at which the search stops, incomplete.
     max_nodes : int, optional
         Node expansions after which the search stops, incomplete.
@@ -258,7 +263,7 @@ def solve_unknown(
         outcome = explore(
             explorer,
             root,
-            Budget(portion(deadline, SEARCH_SHARE), max_nodes),
+            SearchLimit(portion(deadline, SEARCH_SHARE), max_nodes),
             keep,
             tally.add,
             progress,
@@ -380,6 +385,7 @@ def finish_search(
         )
     stats.operator_applications += explorer.graph.applications
     statistics = {key: float(v) if isinstance(v, float) else v for key, v in asdict(stats).items()}
+    ambiguity_lp_s = statistics.pop("ambiguity_lp_seconds")  # a timing, not a count
     statistics.update(
         poses=len(problem.pose_x),
         observations=problem.n_observations,
@@ -395,7 +401,11 @@ def finish_search(
         hypotheses=hypotheses,
         complete=complete,
         statistics=statistics,
-        timings={"solve_s": time.perf_counter() - start, **ranked.timings},
+        timings={
+            "solve_s": time.perf_counter() - start,
+            "ambiguity_lp_s": ambiguity_lp_s,
+            **ranked.timings,
+        },
         log_path=log.path,
         consistency=level if hypotheses else consistency,
         messages=messages,

@@ -19,11 +19,12 @@ from typing import Any
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
+from cuikslam.budget import Budget, deadline_after
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.problem import Problem, build_problem
 from cuikslam.hypotheses.search import _rank_key, explore
 from cuikslam.hypotheses.tally import MAX_TALLIED, Tally
-from cuikslam.hypotheses.tree import Budget, Node, SearchStatistics
+from cuikslam.hypotheses.tree import Node, SearchLimit, SearchStatistics
 from cuikslam.log.records import Log
 
 __all__ = [
@@ -57,7 +58,8 @@ class TaskOptions:
     """Return the decisions of every survivor (else the first ``MAX_TALLIED``)."""
     quantum_s: float | None
     deadline: float | None
-    """Epoch seconds (:func:`time.time`) at which the whole search stops."""
+    """Epoch seconds (:func:`time.time`) at which the whole search stops (the wall-clock
+    cap of its budget; None without one)."""
 
 
 @dataclass
@@ -73,7 +75,7 @@ class Material:
 
 
 @dataclass
-class _Quantum(Budget):
+class _Quantum(SearchLimit):
     """A budget that also stops after ``cpu_until`` (:func:`time.thread_time`)."""
 
     cpu_until: float | None = None
@@ -271,6 +273,7 @@ def _material(
     return Material(lo, hi, rows[own], node.blocks, node.level)
 
 
-def _local_deadline(epoch: float | None) -> float | None:
-    """An epoch deadline on this process's :func:`time.perf_counter` clock."""
-    return None if epoch is None else time.perf_counter() + (epoch - time.time())
+def _local_deadline(epoch: float | None) -> Budget | None:
+    """A budget of the wall clock left before ``epoch`` (None: none; the task's quantum
+    bounds its work)."""
+    return None if epoch is None else deadline_after(epoch - time.time())

@@ -1,19 +1,19 @@
-"""The search tree's data: a node (a partial hypothesis), the budget that stops a search,
+"""The search tree's data: a node (a partial hypothesis), the limit that stops a search,
 and the counts that tell how it went (:mod:`.explorer` expands nodes, :mod:`.search`
 walks the tree)."""
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass
 
+from cuikslam.budget import Budget
 from cuikslam.hypotheses._shared import Overlay
 
 __all__ = [
     "AMBIGUITY_LP_GAP",
     "AMBIGUITY_LP_MIN_DECISIONS",
-    "Budget",
     "Node",
+    "SearchLimit",
     "SearchStatistics",
 ]
 
@@ -111,17 +111,18 @@ class Node:
 
 
 @dataclass
-class Budget:
+class SearchLimit:
     """When the search stops before it is complete (None: no limit)."""
 
-    deadline: float | None = None
-    """A :func:`time.perf_counter` value."""
+    deadline: Budget | None = None
+    """The search's share of the solve's budget."""
     max_nodes: int | None = None
 
     def exhausted(self, nodes: int) -> str | None:
-        """Why the search must stop now, or None."""
-        if self.deadline is not None and time.perf_counter() > self.deadline:
-            return "time budget"
+        """Why the search must stop now (``"work budget"``, ``"time budget"``, ``"node
+        budget"``), or None."""
+        if self.deadline is not None and self.deadline.expired():
+            return f"{self.deadline.meter.bound} budget"
         if self.max_nodes is not None and nodes >= self.max_nodes:
             return "node budget"
         return None

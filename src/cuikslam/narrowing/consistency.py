@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.budget import expired
+from cuikslam.budget import Budget, expired
 from cuikslam.graph.encoding import (
     KIND,
     OBSERVATION,
@@ -113,7 +113,7 @@ def strengthen(
     max_rounds: int,
     progress: Callable[[int, int], None] | None = None,
     *,
-    deadline: float | None = None,
+    deadline: Budget | None = None,
     report: StrengthenReport | None = None,
     threads: int | None = None,
 ) -> Propagation:
@@ -134,7 +134,7 @@ def strengthen(
     progress : callable, optional
         ``progress(done, total)`` after each window's LPs, ``total`` counting the most
         rounds the level may run.
-    deadline : float, optional
+    deadline : Budget, optional
         A :func:`time.perf_counter` value: no LP starts after it, and running LPs stop (at
         most ``lp_bounds.LP_TIME_LIMIT`` later). The boxes are then whatever sound
         narrowing reached, propagated back to the fixpoint. None: no time limit (each LP

@@ -8,9 +8,10 @@ is never trusted: a wrong, inaccurate or unfinished LP can only weaken a bound.
 
 Every LP has a budget: an iteration limit (a multiple of its size; a dual simplex that
 cycles on a degenerate LP otherwise never stops, which is what hung ``lp-split`` on a log
-with nanometre odometry) and, when the caller has a deadline, a time limit (at most
-``LP_TIME_LIMIT``, less when the deadline is nearer; without a deadline no LP depends on
-the clock, so the boxes do not depend on the machine's load). An LP that stops on a
+with nanometre odometry) and, when the caller's budget has a wall-clock cap, a time limit
+(at most ``LP_TIME_LIMIT``, less when the cap is nearer; without one no LP depends on the
+clock, so the boxes do not depend on the machine's load). Each LP spends work in
+proportion to its size (:data:`cuikslam.budget.COSTS`). An LP that stops on a
 limit still gives the safe bound of whatever multipliers it has; its warm-start basis is
 dropped, and an LP that was started from a previous basis and did not reach an optimum is
 solved once more from scratch.
@@ -32,7 +33,7 @@ import numpy as np
 from scipy import sparse
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.budget import expired, remaining
+from cuikslam.budget import COSTS, Budget, expired, remaining, spend
 from cuikslam.narrowing import _simplex
 from cuikslam.narrowing.safe_bound import (
     safe_bound,
@@ -50,8 +51,8 @@ __all__ = [
 ]
 
 LP_TIME_LIMIT = 0.5
-"""Seconds one LP may take at most when the caller has a deadline (a typical one takes a
-few milliseconds)."""
+"""Seconds one LP may take at most when the caller's budget has a wall-clock cap (a typical
+one takes a few milliseconds)."""
 LP_SAFETY_TIME = 10.0
 """Seconds one LP may take at most without a deadline: a safety net only. HiGHS's primal
 simplex once ran for more than 5 minutes on a 335 x 116 LP of a property test (phase 1,
@@ -126,7 +127,7 @@ def certified_bounds(
     box: np.ndarray,
     columns: list[int],
     warm: WarmStarts,
-    deadline: float | None = None,
+    deadline: Budget | None = None,
     statistics: LpStatistics | None = None,
     upper_columns: list[int] | None = None,
     reuse: bool = False,
@@ -146,7 +147,7 @@ def certified_bounds(
         Columns to bound.
     warm : WarmStarts
         Optimal bases of earlier calls on the same rows; read and updated.
-    deadline : float or None
+    deadline : Budget or None
         A :func:`time.perf_counter` value after which no further LP is started (those
         bounds stay infinite) and running LPs stop.
     statistics : LpStatistics or None
@@ -191,7 +192,7 @@ def _bounds(
     columns: list[int],
     sense: float,
     bases: dict[int, highspy.HighsBasis],
-    deadline: float | None,
+    deadline: Budget | None,
 ) -> tuple[list[float], LpStatistics]:
     """Certified minima (sense 1) or maxima (sense -1) of the ``columns``, and counts."""
     ensure_round_to_nearest()  # the rounding mode is per thread
@@ -224,12 +225,12 @@ def _bounds(
         if basis is not None and (len(basis.col_status), len(basis.row_status)) == shape:
             solver.setBasis(basis)
             fresh = False
-        status = _run(solver, deadline, stats)
+        status = _run(solver, deadline, stats, size)
         if status != _OPTIMAL and not fresh and not expired(deadline):
             # a warm start (this column's basis, or the last LP's) that went nowhere
             solver.clearSolver()
             stats.retries += 1
-            status = _run(solver, deadline, stats)
+            status = _run(solver, deadline, stats, size)
         if status == _OPTIMAL:
             stats.optimal += 1
             bases[j] = solver.getBasis()
@@ -354,7 +355,7 @@ def _sequence(
     columns: list[int],
     upper_columns: list[int],
     warm: WarmStarts,
-    deadline: float | None,
+    deadline: Budget | None,
 ) -> tuple[list[float], list[float], LpStatistics]:
     """Certified minima of ``columns`` then maxima of ``upper_columns``, as one sequence:
     HiGHS solves an LP whenever the sequence needs a vertex (the first, or after the
@@ -363,6 +364,7 @@ def _sequence(
     ensure_round_to_nearest()
     stats = LpStatistics()
     m, n = csc.shape
+    size = m + n
     order = np.array(list(columns) + list(upper_columns), dtype=np.int64)
     senses = np.concatenate([np.ones(len(columns)), -np.ones(len(upper_columns))])
     bounds = np.full(len(order), -math.inf)
@@ -394,12 +396,12 @@ def _sequence(
                 solver.changeColCost(costed, 0.0)
             costed = int(order[q])
             solver.changeColCost(costed, float(senses[q]))
-            status = _run(solver, deadline, stats)
+            status = _run(solver, deadline, stats, size)
             if status != _OPTIMAL and not fresh and not expired(deadline):
                 # a warm start that went nowhere: once more from scratch
                 solver.clearSolver()
                 stats.retries += 1
-                status = _run(solver, deadline, stats)
+                status = _run(solver, deadline, stats, size)
             objective[order[q]] = senses[q]
             y = np.asarray(solver.getSolution().row_dual, dtype=np.float64) + 0.0
             if y.shape == (m,) and np.all(np.isfinite(y)):
@@ -440,6 +442,7 @@ def _sequence(
         _keep_sparse(warm, order, senses, duals, q, at)
         stats.solved += at - q
         stats.optimal += at - q
+        spend(deadline, (at - q) * size * COSTS["lp_entry"])
         q = at
         if code == _simplex.REFACTOR:
             inverse = _simplex.inverse_of_active(ids, csr.indptr, csr.indices, csr.data, n)
@@ -456,19 +459,22 @@ def _sequence(
     return bounds[:k].tolist(), bounds[k:].tolist(), stats
 
 
-def _run(solver: highspy.Highs, deadline: float | None, stats: LpStatistics) -> object:
-    """Run one LP within its limits (HiGHS's time limit counts the instance's total time).
+def _run(solver: highspy.Highs, deadline: Budget | None, stats: LpStatistics, size: int) -> object:
+    """Run one LP of ``size`` rows and columns within its limits (HiGHS's time limit counts
+    the instance's total time), and spend its work.
 
-    Without a deadline the iteration limit decides, with ``LP_SAFETY_TIME`` as a safety net
-    far above any LP that finishes: a bound then does not depend on how busy the machine is,
-    and a run gives the same boxes every time."""
-    if deadline is None:  # the iteration limit decides; the time limit is a safety net
+    Without a wall-clock cap the iteration limit decides, with ``LP_SAFETY_TIME`` as a
+    safety net far above any LP that finishes: a bound then does not depend on how busy the
+    machine is, and a run gives the same boxes every time."""
+    seconds = remaining(deadline)
+    if seconds == math.inf:  # the iteration limit decides; the time limit is a safety net
         solver.setOptionValue("time_limit", solver.getRunTime() + LP_SAFETY_TIME)
     else:
-        allowed = min(LP_TIME_LIMIT, max(remaining(deadline), 1e-3))
+        allowed = min(LP_TIME_LIMIT, max(seconds, 1e-3))
         solver.setOptionValue("time_limit", solver.getRunTime() + allowed)
     solver.run()
     stats.solved += 1
+    spend(deadline, size * COSTS["lp_entry"])
     return solver.getModelStatus()
 
 

@@ -22,7 +22,7 @@ import math
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.budget import expired
+from cuikslam.budget import Budget, expired
 from cuikslam.graph.encoding import KIND, NO_FACTOR, OBSERVATION
 from cuikslam.narrowing._factors import fresh_memory
 from cuikslam.narrowing._propagate import INCONSISTENT, propagate_buffered
@@ -58,7 +58,7 @@ def branch_on_blocks(
     allowance: np.ndarray,
     rtol: float,
     max_rounds: int,
-    deadline: float | None = None,
+    deadline: Budget | None = None,
     report: BlockBranching | None = None,
 ) -> Status:
     """Narrow ``lo``/``hi`` in place to the hull, block by block, over the sets of outliers.
@@ -78,7 +78,7 @@ def branch_on_blocks(
         The most outliers among ``members`` of each block (indexed by block).
     rtol, max_rounds
         As in :func:`~cuikslam.narrowing.propagation.narrow`.
-    deadline : float, optional
+    deadline : Budget, optional
         No block is started after this :func:`time.perf_counter` value.
     report : BlockBranching, optional
         Filled in; ``report.proven`` lists proven outliers as indices into ``members``.

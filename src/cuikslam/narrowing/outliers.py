@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cuikslam.budget import expired
+from cuikslam.budget import Budget, expired
 from cuikslam.graph.encoding import KIND, NO_FACTOR, TA, factors_on
 from cuikslam.narrowing._relaxed import (
     RELAXED_INCONSISTENT,
@@ -102,7 +102,7 @@ def narrow_with_outliers(
     rtol: float = 1e-3,
     max_rounds: int = 1,
     *,
-    deadline: float | None = None,
+    deadline: Budget | None = None,
     report: RelaxedReport | None = None,
 ) -> Propagation:
     """Narrow ``lo``/``hi`` in place, sound whenever the declaration of ``scope`` holds.
@@ -119,7 +119,7 @@ def narrow_with_outliers(
         ``hull``, ``lp`` or ``lp-split``: the stronger level, run on the ordinary factors.
     rtol, max_rounds
         As in :func:`~cuikslam.narrowing.propagation.narrow`.
-    deadline : float, optional
+    deadline : Budget, optional
         A :func:`time.perf_counter` value for the stronger level (as in
         :func:`~cuikslam.narrowing.consistency.strengthen`).
     report : RelaxedReport, optional
@@ -256,7 +256,7 @@ def _strengthen(
     level: str,
     rtol: float,
     max_rounds: int,
-    deadline: float | None,
+    deadline: Budget | None,
     report: RelaxedReport,
 ) -> tuple[Status, int]:
     """The stronger level on the ordinary factors, then the relaxed fixpoint again."""
@@ -280,7 +280,7 @@ def _branch(
     allowance: np.ndarray,
     rtol: float,
     max_rounds: int,
-    deadline: float | None,
+    deadline: Budget | None,
     report: RelaxedReport,
 ) -> tuple[Status, list[int], int]:
     """Branch on the outliers of the whole log (when few enough sets) and of each block

@@ -27,6 +27,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
+from cuikslam.budget import Budget
 from cuikslam.narrowing.lp_bounds import LpStatistics
 
 __all__ = ["MIN_PART_WINDOWS", "PARTS", "Part", "default_threads", "partition", "run_parts"]
@@ -96,6 +97,9 @@ class Part:
         """The part at the start of the chain (it reports the sweeps' progress)."""
         self.cut = False
         """Whether the deadline stopped its last sweep."""
+        self.budget: Budget | None = None
+        """The budget of its next sweep (a meter of its own when there are several parts,
+        so that what it does does not depend on how the threads interleave)."""
         self.abandon = False
         """Set when another part failed: the part stops at its next window."""
 

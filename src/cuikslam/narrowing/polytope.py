@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
+from cuikslam.budget import Budget
 from cuikslam.narrowing.lp_bounds import LpStatistics, WarmStarts, certified_bounds
 from cuikslam.narrowing.propagation import Propagation, Status
 from cuikslam.narrowing.relaxation import relax
@@ -33,7 +34,7 @@ def tighten(
     targets: np.ndarray,
     warm: WarmStarts | None = None,
     *,
-    deadline: float | None = None,
+    deadline: Budget | None = None,
     statistics: LpStatistics | None = None,
     upper_targets: np.ndarray | None = None,
     reuse: bool = False,
@@ -57,7 +58,7 @@ def tighten(
         The variables to bound.
     warm : WarmStarts, optional
         Bases and multipliers of the previous calls on the same factors.
-    deadline : float, optional
+    deadline : Budget, optional
         A :func:`time.perf_counter` value past which no further LP starts (the remaining
         targets keep their bounds); each LP also runs within its own limits (see
         :mod:`.lp_bounds`).

@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from cuikslam.budget import expired
+from cuikslam.budget import COSTS, Budget, expired, spend
 from cuikslam.graph.encoding import KIND, OBSERVATION, ODOMETRY, RELATIVE, ROTATION, TA, TB, XA, XB
 from cuikslam.narrowing._factors import fresh_memory
 from cuikslam.narrowing._propagate import propagate_buffered
@@ -204,7 +204,7 @@ def polytope_rounds(
     rtol: float,
     max_rounds: int,
     progress: Callable[[int, int], None] | None,
-    deadline: float | None,
+    deadline: Budget | None,
     report: StrengthenReport,
     threads: int | None = None,
 ) -> tuple[Status, int, bool]:
@@ -242,15 +242,23 @@ def polytope_rounds(
         reuse = round_index >= REUSE_FROM and len(windows) >= REUSE_MIN_WINDOWS
         sweep = partial(
             _sweep_part, windows=windows, warm=warm, signature=signature,
-            forward=round_index % 2 == 0, full=full, reuse=reuse, deadline=deadline,
+            forward=round_index % 2 == 0, full=full, reuse=reuse,
             progress=_progress(progress, round_index, len(windows), len(parts)),
         )  # fmt: skip
         if len(parts) == 1:
+            parts[0].budget = deadline
             consistent, empty = sweep(parts[0], lo, hi), False
         else:
+            for part in parts:
+                part.budget = None if deadline is None else deadline.alone(1.0 / len(parts))
             if threads is None:  # decided once, before this process adds to the load
                 threads = default_threads()
             consistent, empty = run_parts(parts, lo, hi, sweep, max(1, int(threads)))
+            for part in parts:
+                if deadline is not None and part.budget is not None:
+                    spend(deadline, part.budget.meter.spent)
+                    if part.budget.meter.bound is not None:
+                        deadline.meter.note(part.budget.meter.bound)
         for part in parts:
             report.lp.add(part.lp)
             part.lp = LpStatistics()
@@ -261,6 +269,7 @@ def polytope_rounds(
         report.lp_rounds += 1
         status, count = propagate(lo, hi, everything)
         applications += count
+        spend(deadline, count * COSTS["operator"])
         if status is Status.INCONSISTENT:
             return Status.INCONSISTENT, applications, True
         if any(part.cut for part in parts):
@@ -300,7 +309,6 @@ def _sweep_part(
     forward: bool,
     full: bool,
     reuse: bool,
-    deadline: float | None,
     progress: Callable[[int], None] | None,
 ) -> bool:
     """One sweep of ``part``'s windows over ``lo`` / ``hi`` (narrowed in place); False when
@@ -316,7 +324,7 @@ def _sweep_part(
             break
         if progress is not None and part.first:
             progress(step)
-        visited = _visit(part, windows[w], warm[w], signature, w, lo, hi, reuse, deadline)
+        visited = _visit(part, windows[w], warm[w], signature, w, lo, hi, reuse, part.budget)
         if visited is None:
             part.cut = True
             break
@@ -335,7 +343,7 @@ def _visit(
     lo: np.ndarray,
     hi: np.ndarray,
     reuse: bool,
-    deadline: float | None,
+    deadline: Budget | None,
 ) -> bool | None:
     """One window's propagation and LPs, narrowing ``lo`` / ``hi`` in place with the
     ``part``'s buffers and stale marks. False: the graph is proven inconsistent; None: the
@@ -355,6 +363,7 @@ def _visit(
         return None
     status, count = part.propagate(lo, hi, window.indices, LOCAL_SPAN * len(window.indices))
     part.applications += count
+    spend(deadline, count * COSTS["operator"])
     if status is Status.INCONSISTENT:
         return False
     old_lo, old_hi = lo[window.targets], hi[window.targets]

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from cuikslam.budget import OutOfTime, expired
+from cuikslam.budget import COSTS, Budget, OutOfTime, expired, spend
 from cuikslam.hypotheses.witness._kinematics import step_from_world
 from cuikslam.hypotheses.witness._numeric import (
     cos_sin,
@@ -26,6 +26,9 @@ from cuikslam.hypotheses.witness._numeric import (
 
 PoseBoxes = Mapping[int, np.ndarray] | np.ndarray | None
 LandmarkBoxes = Mapping[str, np.ndarray] | np.ndarray | None
+
+LANDMARK_FIT_COST = 100 * COSTS["residual"]
+"""Work units of one landmark's least-squares start (at most 16 starts of 50 evaluations)."""
 
 
 def _by_id(
@@ -125,7 +128,7 @@ class Starts:
         poses_box: PoseBoxes = None,
         landmarks_box: LandmarkBoxes = None,
         rng: np.random.Generator | None = None,
-        deadline: float | None = None,
+        deadline: Budget | None = None,
     ) -> np.ndarray:
         """A starting point: interval midpoints (or random points of the intervals when
         ``rng`` is given), refined by the boxes' centres where given; landmarks at their box
@@ -158,6 +161,7 @@ class Starts:
                 if expired(deadline):
                     raise OutOfTime
                 L[j] = self._fit_landmark(j, P, rng)
+                spend(deadline, LANDMARK_FIT_COST)
         L = np.where(np.isnan(L), 0.0, L)
         p[self.landmark_param0 :] = L.ravel()
         return p

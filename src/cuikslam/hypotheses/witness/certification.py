@@ -12,6 +12,7 @@ import time
 
 import numpy as np
 
+from cuikslam.budget import Budget
 from cuikslam.hypotheses.witness.find import (
     MAX_EVALUATIONS,
     MAX_TOTAL_EVALUATIONS,
@@ -40,7 +41,7 @@ def certify(
     restarts: int | None = None,
     max_hypotheses: int | None = None,
     use_sensor: bool = True,
-    deadline: float | None = None,
+    deadline: Budget | None = None,
     max_evaluations: int = MAX_EVALUATIONS,
     max_total_evaluations: int = MAX_TOTAL_EVALUATIONS,
 ) -> WitnessStatistics:

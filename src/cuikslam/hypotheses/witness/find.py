@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from cuikslam.budget import OutOfTime, blas_single_thread, expired
+from cuikslam.budget import COSTS, Budget, OutOfTime, blas_single_thread, expired, spend
 from cuikslam.hypotheses.witness._levenberg import bounded_least_squares
 from cuikslam.hypotheses.witness._numeric import finite
 from cuikslam.hypotheses.witness.model import (
@@ -113,9 +113,11 @@ class _Verified(Exception):
 class _Meter:
     """Counts evaluations and raises when the search's time or work budget is spent."""
 
-    deadline: float | None
+    deadline: Budget | None
     limit: int
     stats: WitnessStatistics
+    cost: float = 0.0
+    """Work units of one evaluation (see :data:`cuikslam.budget.COSTS`)."""
     used: int = 0
     quota_end: int | None = None
     """``used`` beyond which the current start is over its round's quota."""
@@ -123,12 +125,19 @@ class _Meter:
     def tick(self) -> None:
         self.used += 1
         self.stats.evaluations += 1
+        spend(self.deadline, self.cost)
         if expired(self.deadline):
             raise OutOfTime
         if self.used > self.limit:
             raise _OutOfWork
         if self.quota_end is not None and self.used > self.quota_end:
             raise _OverQuota
+
+
+def evaluation_cost(model: HypothesisModel) -> float:
+    """Work units of one evaluation of ``model``'s residuals and Jacobian: one per parameter
+    and per check, so that the work does not depend on the machine."""
+    return COSTS["residual"] * (model.n_params + model.n_checks)
 
 
 def _polish_equalities(model: HypothesisModel, p: np.ndarray, iterations: int = 4) -> np.ndarray:
@@ -292,7 +301,7 @@ class WitnessSearch:
         poses_box: PoseBoxes,
         landmarks_box: LandmarkBoxes,
         seed: int,
-        deadline: float | None,
+        deadline: Budget | None,
         max_evaluations: int,
         statistics: WitnessStatistics,
     ) -> None:
@@ -302,7 +311,7 @@ class WitnessSearch:
         self.rng = np.random.default_rng(seed)
         self.deadline = deadline
         self.stats = statistics
-        self.meter = _Meter(deadline, max_evaluations, statistics)
+        self.meter = _Meter(deadline, max_evaluations, statistics, evaluation_cost(model))
         self.tried = 0
         self.best: tuple[float, np.ndarray] | None = None
         self.point: WitnessPoint | None = None
@@ -384,7 +393,7 @@ def find_point(
     seed: int,
     restarts: int,
     *,
-    deadline: float | None = None,
+    deadline: Budget | None = None,
     max_evaluations: int = MAX_EVALUATIONS,
     statistics: WitnessStatistics | None = None,
 ) -> tuple[WitnessPoint | None, np.ndarray | None]:
@@ -400,7 +409,7 @@ def find_point(
         Seed of the random starts.
     restarts : int
         Random starts after the box centres and the interval midpoints.
-    deadline : float, optional
+    deadline : Budget, optional
         :func:`time.perf_counter` value at which the search stops.
     max_evaluations : int
         Residual evaluations at most.
@@ -429,7 +438,7 @@ def find_witness(
     *,
     restarts: int = 3,
     use_sensor: bool = True,
-    deadline: float | None = None,
+    deadline: Budget | None = None,
 ) -> WitnessPoint | None:
     """Look for a solution point of the hypothesis ``(log, assignment)``.
 

@@ -34,7 +34,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from cuikslam.budget import OutOfTime, blas_single_thread, expired
+from cuikslam.budget import Budget, OutOfTime, blas_single_thread, expired
 from cuikslam.hypotheses.witness.find import (
     CENTRE_TOLERANCE,
     WitnessStatistics,
@@ -42,6 +42,7 @@ from cuikslam.hypotheses.witness.find import (
     _Meter,
     _OutOfWork,
     _param_bounds,
+    evaluation_cost,
     tr_solver_for,
 )
 from cuikslam.hypotheses.witness.model import HypothesisModel
@@ -66,7 +67,7 @@ FIT_MAX_HYPOTHESES = 1000
 def fit_cost(
     model: HypothesisModel,
     hypothesis: Hypothesis | None,
-    deadline: float | None = None,
+    deadline: Budget | None = None,
     max_evaluations: int = FIT_EVALUATIONS,
     start: np.ndarray | None = None,
 ) -> tuple[float, np.ndarray | None]:
@@ -111,7 +112,7 @@ def fit_cost(
         q[free] = z
         return model.fit_residuals(q, jacobian)
 
-    meter = _Meter(deadline, max_evaluations, WitnessStatistics())
+    meter = _Meter(deadline, max_evaluations, WitnessStatistics(), evaluation_cost(model))
     z0 = np.clip(p0[free], lb, ub)
     try:
         with blas_single_thread(), np.errstate(all="ignore"):
@@ -154,7 +155,7 @@ class _Fitter:
     the last hypothesis with the same parameters: most differ in a few readings (on Lost
     in the Woods, 200 poses, 5 evaluations instead of 8)."""
 
-    def __init__(self, log: Log, deadline: float | None, max_evaluations: int) -> None:
+    def __init__(self, log: Log, deadline: Budget | None, max_evaluations: int) -> None:
         self.log, self.deadline, self.max_evaluations = log, deadline, max_evaluations
         self.minimisers: dict[tuple[str, ...], np.ndarray] = {}  # by the model's parameters
 
@@ -182,7 +183,7 @@ class _Fitter:
 def fit_hypotheses(
     log: Log,
     solution: Solution,
-    deadline: float | None = None,
+    deadline: Budget | None = None,
     max_evaluations: int = FIT_EVALUATIONS,
     known: Callable[[list[str]], Hypothesis | None] | None = None,
 ) -> int:
