@@ -18,6 +18,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from cuikslam.log.reader import read_log_file
@@ -668,3 +669,138 @@ def test_an_unknown_level_is_refused_with_the_choices() -> None:
         SolveOptions(consistency="box")
     with pytest.raises(TypeError):
         SolveOptions().replace(no_such_option=1)
+
+
+# --------------------------------------------------------------------------- a truth of another log
+def walk(n_poses: int, folder: Path, name: str, *, landmark: str = "A") -> tuple[Path, Path]:
+    """A log of ``n_poses`` poses 1 m apart along x, each seeing post A at (2, 3) (the first
+    sighting names it), and its truth calling the post ``landmark``: ``NAME.jsonl`` and
+    ``NAME.truth.json`` in ``folder``."""
+    lines = ['{"type": "prior", "pose": 0, "x": [0, 0], "y": [0, 0], "theta": [0, 0]}']
+    for i in range(n_poses):
+        if i:
+            lines.append(
+                f'{{"type": "odometry", "from": {i - 1}, "to": {i}, "turn": [-0.01, 0.01], '
+                '"distance": [0.9, 1.1]}'
+            )
+        r, b = math.hypot(2 - i, 3), math.atan2(3, 2 - i)
+        named = ', "landmark": "A"' if i == 0 else ""
+        lines.append(
+            f'{{"type": "observation", "pose": {i}, "class": "post", "range": [{r - 0.1}, '
+            f'{r + 0.1}], "bearing": [{b - 0.05}, {b + 0.05}]{named}}}'
+        )
+    log, truth = folder / f"{name}.jsonl", folder / f"{name}.truth.json"
+    log.write_text("\n".join(lines) + "\n", encoding="utf-8")
+    doc = {
+        "poses": {str(i): [i, 0, 0] for i in range(n_poses)},
+        "landmarks": {landmark: {"class": "post", "x": 2, "y": 3}},
+        "assignment": [landmark] * n_poses,
+    }
+    truth.write_text(json.dumps(doc), encoding="utf-8")
+    return log, truth
+
+
+@pytest.mark.parametrize(
+    ("other", "fragments"),
+    [
+        pytest.param(
+            {"n_poses": 9},
+            [
+                "it assigns 9 observations, the log has 3",
+                "it has 6 poses the log lacks (3, 4, 5, …, 8)",
+            ],
+            id="bigger",
+        ),
+        pytest.param({"n_poses": 2}, ["it assigns 2 observations, the log has 3"], id="smaller"),
+        pytest.param(
+            {"n_poses": 3, "landmark": "B"}, ["the log names 1 landmark it lacks (A)"], id="renamed"
+        ),
+    ],
+)
+def test_solve_refuses_the_truth_of_another_log_before_solving(
+    tmp_path: Path, other: dict, fragments: list[str]
+) -> None:
+    """The truth of a larger log crashed with an IndexError after the tables, that of a
+    smaller one ran the whole solve to report a lost truth (issue 27): now one line naming
+    both files, exit 2, no table (the solver never ran), no output file."""
+    walk(3, tmp_path, "u")
+    walk(**other, folder=tmp_path, name="other")
+    before = listing(tmp_path)
+    result = run(
+        "solve", "u.jsonl", "--truth", "other.truth.json", "--json", "r.json", cwd=tmp_path
+    )
+    assert_input_error(result, "other.truth.json does not fit u.jsonl: ", *fragments)
+    assert result.stdout == ""
+    assert listing(tmp_path) == before
+
+
+def test_a_truth_that_does_not_fit_never_reaches_the_solver(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture
+) -> None:
+    """In process, with a stand-in solver that raises when called: the matching truth
+    reaches it, the truth of another log does not."""
+    import types
+
+    from cuikslam.cli.main import main
+
+    class Solved(Exception):
+        pass
+
+    def solve(*args: object, **kwargs: object) -> None:
+        raise Solved
+
+    monkeypatch.setitem(sys.modules, "cuikslam.solver", types.SimpleNamespace(solve=solve))
+    log, truth = walk(3, tmp_path, "u")
+    _, bigger = walk(4, tmp_path, "big")
+    with pytest.raises(Solved):
+        main(["solve", str(log), "--truth", str(truth), "-q"])
+    assert main(["solve", str(log), "--truth", str(bigger), "-q"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.splitlines() == [
+        f"cuikslam: error: {bigger} does not fit {log}: it assigns 4 observations, the log "
+        "has 3; it has 1 pose the log lacks (3)"
+    ]
+
+
+def test_plot_and_calibrate_check_refuse_the_truth_of_another_log(tmp_path: Path) -> None:
+    from cuikslam.results.io import write_result_file
+    from cuikslam.results.solution import Hypothesis, Solution
+
+    walk(3, tmp_path, "u")
+    walk(5, tmp_path, "big")
+    boxes = [[[i - 0.5, i + 0.5], [-0.5, 0.5], [-0.1, 0.1]] for i in range(3)]
+    hypothesis = Hypothesis(
+        assignment=["A"] * 3,
+        pose_ids=[0, 1, 2],
+        poses=np.array(boxes),
+        landmark_ids=["A"],
+        landmark_classes=["post"],
+        landmarks=np.array([[[1.5, 2.5], [2.5, 3.5]]]),
+    )
+    write_result_file(Solution([hypothesis], log_path="u.jsonl"), tmp_path / "r.json")
+    before = listing(tmp_path)
+    plotted = run("plot", "r.json", "-o", "fig.png", "--truth", "big.truth.json", cwd=tmp_path)
+    assert_input_error(
+        plotted, "big.truth.json does not fit r.json: it assigns 5 observations, the result has 3"
+    )
+    checked = run(
+        "calibrate", "check", "u.jsonl", "--truth", "big.truth.json", "--json", "c.json",
+        cwd=tmp_path,
+    )  # fmt: skip
+    assert_input_error(checked, "big.truth.json does not fit u.jsonl: it assigns 5 observations")
+    assert plotted.stdout == checked.stdout == ""
+    assert listing(tmp_path) == before
+    plotted = run("plot", "r.json", "-o", "fig.png", "--truth", "u.truth.json", cwd=tmp_path)
+    assert plotted.returncode == 0, plotted.stderr
+    assert is_png(tmp_path / "fig.png")
+
+
+def test_the_walk_with_its_own_truth_solves_and_keeps_the_truth(tmp_path: Path) -> None:
+    """The control for the tests above: the same log with its own truth is solved."""
+    walk(3, tmp_path, "u")
+    result = run("solve", "u.jsonl", "--truth", "u.truth.json", "--json", "r.json", cwd=tmp_path)
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert "Hypothesis 1 of" in result.stdout
+    assert "truth check: the true correspondence survived" in " ".join(result.stdout.split())
+    assert (tmp_path / "r.json").is_file()

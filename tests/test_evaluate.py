@@ -163,11 +163,11 @@ def test_cli_writes_tables_and_figure(tmp_path: Path, capsys: pytest.CaptureFixt
         (lambda r, t: Path(t).write_text("{"), "t.truth.json:1: not valid JSON"),
         (
             lambda r, t: Path(t).write_text(json.dumps(_truth_doc({"0": [0, 0, 0]}, ["A"]))),
-            "t.truth.json: does not match",
+            "r.json: it assigns 1 observation, the result has 2",
         ),
         (
             lambda r, t: Path(t).write_text(json.dumps(_truth_doc({"7": [0, 0, 0]}, ["A", "B"]))),
-            "none of the truth's 1 poses is a pose of the result",
+            "r.json: it has 1 pose the result lacks (7)",
         ),
         (lambda r, t: Path(r).write_text('{"hypotheses": 3}'), "not a cuikslam result file"),
     ],
@@ -296,3 +296,72 @@ def test_the_pose_hull_is_paired_with_poses_by_id_not_by_first_mention() -> None
     ev = evaluate(solution, truth)
     assert (ev.hull_checked, ev.hull_inside) == (2, 2)
     assert ev.guarantee_held is not False
+
+
+LOG = (
+    '{"type": "prior", "pose": 0, "x": [0, 0], "y": [0, 0], "theta": [0, 0]}\n'
+    '{"type": "observation", "pose": 0, "class": "post", "range": [2, 4], "landmark": "A"}\n'
+    '{"type": "odometry", "from": 0, "to": 1, "turn": [0, 0], "distance": [1, 1]}\n'
+    '{"type": "observation", "pose": 1, "class": "post", "range": [1, 4]}\n'
+)
+
+
+@pytest.mark.parametrize(
+    ("truth", "problem"),
+    [
+        pytest.param(
+            _truth_doc({"0": [0, 0, 0], "1": [1, 0, 0], "2": [2, 0, 0]}, ["A", "B", "A"]),
+            "it assigns 3 observations, the log has 2; it has 1 pose the log lacks (2)",
+            id="bigger",
+        ),
+        pytest.param(
+            _truth_doc({"0": [0, 0, 0]}, ["A"]),
+            "it assigns 1 observation, the log has 2",
+            id="smaller",
+        ),
+        pytest.param(
+            {**_truth_doc({"0": [0, 0, 0]}, ["B", "B"]), "landmarks": {"B": [4.5, 1, "post"]}},
+            "the log names 1 landmark it lacks (A)",
+            id="renamed",
+        ),
+    ],
+)
+def test_the_truth_of_another_log_is_refused_before_any_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture, truth: dict, problem: str
+) -> None:
+    """Against the log the result names, the log given with --log, or the result itself
+    when its log is gone: one line naming both files, exit 2, no table, no output."""
+    log = tmp_path / "trip.jsonl"
+    log.write_text(LOG)
+    hypothesis = _hypothesis(["A", "B"], ["A", "B"])
+    solution = Solution([hypothesis], log_path=str(log))
+    result, truth_path = _write(tmp_path, solution, truth)
+    out, figure = tmp_path / "ev.json", tmp_path / "ev.png"
+    args = ["evaluate", result, "--truth", truth_path, "--json", str(out), "--figure", str(figure)]
+    for extra, against in (([], log), (["--log", str(log)], log)):
+        assert main([*args, *extra]) == 2
+        captured = capsys.readouterr()
+        assert captured.out == "" and not out.exists() and not figure.exists()
+        assert captured.err.splitlines() == [
+            f"cuikslam: error: {truth_path} does not fit {against}: {problem}"
+        ]
+    if "log names" in problem:  # without the log, the names it gives are unknown
+        return
+    log.unlink()
+    assert main(args) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and not out.exists() and not figure.exists()
+    line = captured.err.splitlines()
+    assert len(line) == 1 and f"{truth_path} does not fit {result}: it assigns" in line[0]
+
+
+def test_a_fitting_truth_with_or_without_assignment_is_evaluated(
+    tmp_path: Path, capsys: pytest.CaptureFixture
+) -> None:
+    log = tmp_path / "trip.jsonl"
+    log.write_text(LOG)
+    solution = Solution([_hypothesis(["A", "B"], ["A", "B"])], log_path=str(log))
+    for assignment in (["A", "B"], []):
+        result, truth_path = _write(tmp_path, solution, _truth_doc({"0": [0, 0, 0]}, assignment))
+        assert main(["evaluate", result, "--truth", truth_path, "-q"]) == 0
+        assert capsys.readouterr().err == ""

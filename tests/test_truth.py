@@ -18,12 +18,23 @@ import numpy as np
 import pytest
 
 from _exact import MP, TWO_PI, angle_inside, mpf
+from cuikslam.errors import InputFileError
 from cuikslam.interval.angles import _pi_enclosure
-from cuikslam.log import LogFormatError
-from cuikslam.results.solution import Hypothesis, check_truth
-from cuikslam.simulate.truth import read_truth_file
+from cuikslam.log import LogFormatError, parse_log_lines
+from cuikslam.log.reader import read_log_file
+from cuikslam.results.solution import Hypothesis, Solution, check_truth
+from cuikslam.simulate.truth import (
+    GroundTruth,
+    TruthMisfit,
+    TruthMismatchError,
+    _truth_from_json,
+    check_truth_fits,
+    read_truth_file,
+    truth_misfit,
+)
 
-REPRO = Path(__file__).parent / "data" / "repro"
+DATA = Path(__file__).parent / "data"
+REPRO = DATA / "repro"
 
 
 def hypothesis(pose_box: list[list[float]], landmark_box: list[list[float]]) -> Hypothesis:
@@ -36,6 +47,10 @@ def hypothesis(pose_box: list[list[float]], landmark_box: list[list[float]]) -> 
         landmark_classes=["c"],
         landmarks=np.array([landmark_box], float),
     )
+
+
+def log_name(truth_path: Path) -> str:
+    return truth_path.name.removesuffix(".truth.json") + ".jsonl"
 
 
 def below(x: float) -> float:
@@ -156,6 +171,106 @@ def test_malformed_json_numbers(tmp_path: Path, text: str, problem: str) -> None
     path.write_text(text)
     with pytest.raises(LogFormatError, match=problem):
         read_truth_file(path)
+
+
+# --- does the truth fit its log ------------------------------------------------------------
+
+LOG_LINES = [
+    '{"type": "prior", "pose": 0, "x": [0, 0], "y": [0, 0], "theta": [0, 0]}',
+    '{"type": "landmark", "id": "M", "class": "post", "x": [4, 6], "y": [0, 1]}',
+    '{"type": "odometry", "from": 0, "to": 1, "turn": [0, 0], "distance": [1, 1]}',
+    '{"type": "observation", "pose": 0, "class": "post", "range": [2, 3], "landmark": "A"}',
+    '{"type": "observation", "pose": 1, "class": "post", "range": [1, 2]}',
+]
+
+
+def truth_of(poses: list[int], landmarks: list[str], assignment: list[str]) -> GroundTruth:
+    return _truth_from_json(
+        {
+            "poses": {str(p): [p, 0, 0] for p in poses},
+            "landmarks": {m: {"class": "post", "x": 2, "y": 0} for m in landmarks},
+            "assignment": assignment,
+        }
+    )
+
+
+@pytest.mark.parametrize(
+    ("truth", "expected"),
+    [
+        pytest.param(truth_of([0, 1], ["A", "M"], ["A", "A"]), TruthMisfit(2, 2), id="fits"),
+        pytest.param(truth_of([1], ["A", "M"], ["A", "M"]), TruthMisfit(2, 2), id="vicon-gap"),
+        pytest.param(
+            truth_of([0, 1, 2, 3], ["A", "M"], ["A", "A", "M"]),
+            TruthMisfit(3, 2, count_differs=True, extra_poses=(2, 3)),
+            id="bigger",
+        ),
+        pytest.param(
+            truth_of([0], ["A", "M"], ["A"]), TruthMisfit(1, 2, count_differs=True), id="smaller"
+        ),
+        pytest.param(
+            truth_of([0, 1], ["B"], ["B", "B"]),
+            TruthMisfit(2, 2, missing_landmarks=("A", "M")),
+            id="other-names",
+        ),
+        pytest.param(
+            truth_of([0, 1], ["A", "M"], []), TruthMisfit(0, 2, count_differs=True), id="unassigned"
+        ),
+    ],
+)
+def test_truth_misfit_finds_what_does_not_fit_the_log(
+    truth: GroundTruth, expected: TruthMisfit
+) -> None:
+    log = parse_log_lines(LOG_LINES, path="trip.jsonl")
+    named = {"A", "M"}
+    misfit = truth_misfit(truth, log.pose_ids, len(log.observations), named)
+    assert misfit == expected
+    assert bool(misfit) is (expected != TruthMisfit(2, 2))
+    if misfit:
+        with pytest.raises(TruthMismatchError) as caught:
+            check_truth_fits(truth, "t.truth.json", log)
+        assert isinstance(caught.value, InputFileError)
+        assert caught.value.misfit == expected
+        assert str(caught.value) == f"t.truth.json does not fit trip.jsonl: {misfit.describe()}"
+        assert "\n" not in str(caught.value)
+    else:
+        check_truth_fits(truth, "t.truth.json", log)
+
+
+def test_a_truth_without_assignment_fits_where_it_may() -> None:
+    log = parse_log_lines(LOG_LINES, path="trip.jsonl")
+    unassigned = truth_of([0, 1], ["A", "M"], [])
+    check_truth_fits(unassigned, "t.truth.json", log, assignment_optional=True)
+    short = truth_of([0, 1], ["A", "M"], ["A"])
+    with pytest.raises(TruthMismatchError, match=r"it assigns 1 observation, the log has 2$"):
+        check_truth_fits(short, "t.truth.json", log, assignment_optional=True)
+
+
+def test_a_truth_is_held_against_a_result_when_its_log_is_not_at_hand() -> None:
+    result = Solution([hypothesis([[0, 0], [0, 0], [0, 0]], [[1, 3], [-1, 1]])])
+    check_truth_fits(truth_of([0], ["Z"], ["Z"]), "t.truth.json", result, "r.json")
+    with pytest.raises(TruthMismatchError) as caught:
+        check_truth_fits(truth_of([0, 5], ["Z"], ["Z", "Z"]), "t.truth.json", result, "r.json")
+    assert str(caught.value) == (
+        "t.truth.json does not fit r.json: it assigns 2 observations, the result has 1; "
+        "it has 1 pose the result lacks (5)"
+    )
+
+
+def test_many_missing_ids_are_shortened() -> None:
+    misfit = TruthMisfit(3, 3, extra_poses=tuple(range(10, 200)), missing_landmarks=("B", "C"))
+    assert misfit.describe() == (
+        "it has 190 poses the log lacks (10, 11, 12, …, 199); the log names 2 landmarks it "
+        "lacks (B, C)"
+    )
+
+
+@pytest.mark.parametrize(
+    "path",
+    sorted(p for p in DATA.rglob("*.truth.json") if p.with_name(log_name(p)).is_file()),
+    ids=lambda p: p.name,
+)
+def test_every_truth_file_of_the_tests_fits_its_log(path: Path) -> None:
+    check_truth_fits(read_truth_file(path), path, read_log_file(path.with_name(log_name(path))))
 
 
 def test_cli_refuses_a_bad_truth_file_in_one_line(tmp_path: Path) -> None:

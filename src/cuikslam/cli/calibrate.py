@@ -135,17 +135,13 @@ def _cmd_check(args: argparse.Namespace) -> int:
     from cuikslam._atomic import atomic_write_text
     from cuikslam.log.reader import read_log_file
     from cuikslam.results.measurement_check import check_log, outside_to_json
-    from cuikslam.simulate.truth import read_truth_file
+    from cuikslam.simulate.truth import check_truth_fits, read_truth_file
 
     if args.json:
         check_output_path(args.json)
     log = read_log_file(args.log)
     truth = read_truth_file(args.truth)
-    if len(truth.assignment) != len(log.observations):
-        raise CommandError(
-            f"{args.truth}: assigns {len(truth.assignment)} observations, the log "
-            f"{args.log} has {len(log.observations)}"
-        )
+    check_truth_fits(truth, args.truth, log)
     found = check_log(log, truth)
     document = outside_to_json(found)
     verdict = None

@@ -184,7 +184,7 @@ def write_log_and_truth(log, truth, out: Path, truth_out: Path, *, quiet: bool) 
 def cmd_plot(args: argparse.Namespace) -> int:
     from cuikslam.results.io import read_result_file
     from cuikslam.results.solution import no_hypothesis
-    from cuikslam.simulate.truth import read_truth_file
+    from cuikslam.simulate.truth import check_truth_fits, read_truth_file
 
     # Inputs and the output folder first: a bad file fails before matplotlib is imported.
     check_figure_path(args.output)
@@ -192,6 +192,8 @@ def cmd_plot(args: argparse.Namespace) -> int:
     truth = read_truth_file(args.truth) if args.truth else None
     if not solution.hypotheses:
         raise CommandError(f"{args.result}: no hypothesis to plot ({no_hypothesis(solution)})")
+    if truth is not None:
+        check_truth_fits(truth, args.truth, solution, args.result, assignment_optional=True)
 
     from cuikslam.results.figures import plot_solution, save_figure
 

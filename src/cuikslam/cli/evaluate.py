@@ -20,7 +20,7 @@ from cuikslam.results.evaluate import Evaluation, evaluate, evaluation_to_json
 from cuikslam.results.io import read_result_file
 from cuikslam.results.measurement_check import check_log
 from cuikslam.results.solution import no_hypothesis
-from cuikslam.simulate.truth import read_truth_file
+from cuikslam.simulate.truth import check_truth_fits, read_truth_file
 
 __all__ = ["print_evaluation", "run_evaluate"]
 
@@ -166,6 +166,10 @@ def run_evaluate(
     named = set() if log is None else named_landmarks(log)
     if not solution.hypotheses:
         raise CommandError(f"{result_path}: no hypothesis to evaluate ({no_hypothesis(solution)})")
+    if log is not None:
+        check_truth_fits(truth, truth_path, log, assignment_optional=True)
+    else:
+        check_truth_fits(truth, truth_path, solution, result_path, assignment_optional=True)
     outside: list[int] = []  # the true outliers, when hypotheses may take some
     unchecked: list[int] = []
     if log is not None and log.outlier_bounds and log.has_unknown_correspondence:

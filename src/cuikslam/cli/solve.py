@@ -19,7 +19,7 @@ from cuikslam.results.measurement_check import check_log
 from cuikslam.results.overview import overview_lines
 from cuikslam.results.solution import Solution
 from cuikslam.results.table import hypothesis_table, summary_table
-from cuikslam.simulate.truth import GroundTruth, read_truth_file
+from cuikslam.simulate.truth import GroundTruth, check_truth_fits, read_truth_file
 
 __all__ = ["TABLE_MAX_POSES", "print_solution", "report_truth", "run_solve"]
 
@@ -141,6 +141,8 @@ def run_solve(
             check_output_path(path)
     log = read_log_file(log_path)
     truth = read_truth_file(truth_path) if truth_path else None
+    if truth is not None:
+        check_truth_fits(truth, truth_path, log)
 
     from cuikslam.solver import solve
 

@@ -10,8 +10,12 @@ from cuikslam.simulate.paper import (
 from cuikslam.simulate.random_world import WorldSpec, simulate_random_world, simulate_world
 from cuikslam.simulate.truth import (
     GroundTruth,
+    TruthMisfit,
+    TruthMismatchError,
+    check_truth_fits,
     noisy_interval,
     read_truth_file,
+    truth_misfit,
     truth_to_json,
     wrap_angle,
     write_truth_file,
@@ -20,7 +24,10 @@ from cuikslam.simulate.truth import (
 __all__ = [
     "PAPER_SURVIVORS",
     "GroundTruth",
+    "TruthMisfit",
+    "TruthMismatchError",
     "WorldSpec",
+    "check_truth_fits",
     "noisy_interval",
     "paper_survivors",
     "paper_table1",
@@ -29,6 +36,7 @@ __all__ = [
     "simulate_paper",
     "simulate_random_world",
     "simulate_world",
+    "truth_misfit",
     "truth_to_json",
     "wrap_angle",
     "write_truth_file",
