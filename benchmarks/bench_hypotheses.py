@@ -54,6 +54,7 @@ def _run_world(
     n_poses: int, n_landmarks: int, classes: tuple[str, ...], seed: int, world: dict,
     budget: float, decide: float, level: str, queue: multiprocessing.Queue,
 ) -> None:  # fmt: skip
+    from cuikslam.budget import deadline_after
     from cuikslam.hypotheses import solve_unknown
     from cuikslam.hypotheses.witness import certify, fit_hypotheses
     from cuikslam.narrowing.consistency import warm_up_lp
@@ -69,14 +70,14 @@ def _run_world(
     warm_up_lp()  # the search narrows ambiguous nodes to lp
     start = time.perf_counter()
     solution = solve_unknown(
-        log, consistency=level, deadline=start + budget
+        log, consistency=level, deadline=deadline_after(budget)
     )  # fmt: skip
     elapsed = time.perf_counter() - start
     decide_start = time.perf_counter()
     if len(solution.hypotheses) > 1:  # as solve() ranks them: by the least-squares fit
-        fit_hypotheses(log, solution, deadline=decide_start + decide / 2 if decide > 0 else None)
+        fit_hypotheses(log, solution, deadline=deadline_after(decide / 2) if decide > 0 else None)
     if decide > 0:
-        certify(log, solution, deadline=decide_start + decide)
+        certify(log, solution, deadline=deadline_after(decide))
     decide_s = time.perf_counter() - decide_start
     stats = solution.statistics
     true_rank = rank_of(solution.hypotheses, truth.assignment)

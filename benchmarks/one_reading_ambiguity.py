@@ -20,6 +20,8 @@ import json
 import time
 from pathlib import Path
 
+from cuikslam.budget import deadline_after
+
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -50,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
                 labelled[i] = json.dumps(record)
         start = time.perf_counter()
         log = parse_log_lines(labelled)
-        solution = solve_unknown(log, consistency=args.level, deadline=start + args.budget)
+        solution = solve_unknown(log, consistency=args.level, deadline=deadline_after(args.budget))
         return solution, time.perf_counter() - start
 
     print(f"{'reading':>8} {'truth':>8} {'choices':>8} {'seconds':>8}  landmarks it can be")

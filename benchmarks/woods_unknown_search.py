@@ -25,6 +25,8 @@ import time
 from datetime import UTC, datetime
 from pathlib import Path
 
+from cuikslam.budget import deadline_after
+
 RESULTS = Path(__file__).parent / "results" / "woods_unknown_search.json"
 
 
@@ -56,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     survivors: set[tuple] = set()
     start = time.perf_counter()
     solution = solve_unknown(
-        log, consistency=args.level, deadline=start + args.budget,
+        log, consistency=args.level, deadline=deadline_after(args.budget),
         on_survivor=lambda a: survivors.add(key(a)),
     )  # fmt: skip
     seconds = time.perf_counter() - start

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import cuikslam.hypotheses.survivors as after_search
+from cuikslam.budget import Budget
 from cuikslam.hypotheses import solve_unknown
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer
@@ -123,7 +124,8 @@ def test_each_bisection_gets_its_share_whatever_the_others_do(log: Log) -> None:
 
 def test_a_deadline_in_the_past_stops_before_any_work(log: Log) -> None:
     (b,) = _bisections(log, [[]])
-    assert refute_by_bisection([b], deadline=0.0, max_parts=100) == [False]
+    spent = Budget.start(work=0.0)
+    assert refute_by_bisection([b], deadline=spent, max_parts=100) == [False]
     assert b.narrowed_parts == 0 and len(b.parts) == 1
 
 

@@ -17,9 +17,9 @@ from cuikslam.hypotheses import survivors as after_search
 from cuikslam.hypotheses._gates import gate
 from cuikslam.hypotheses._shared import EMPTY_OVERLAY, Overlay, SharedGraph
 from cuikslam.hypotheses.explorer import Explorer, Node
-from cuikslam.hypotheses.tree import SearchLimit
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.search import explore
+from cuikslam.hypotheses.tree import SearchLimit
 from cuikslam.narrowing._factors import fresh_memory
 from cuikslam.narrowing._propagate import INCONSISTENT, propagate_arrays, propagate_buffered
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL

@@ -28,6 +28,7 @@ from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import COSTS, Budget, portion, spend
 from cuikslam.hypotheses._shared import SharedGraph
 from cuikslam.hypotheses.bisection import refute_by_bisection
+from cuikslam.hypotheses.dive import DIVE_SHARE, Dive, dive
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.labelled import has_labelled_logs, solve_labelled
 from cuikslam.hypotheses.problem import build_problem
@@ -64,7 +65,7 @@ best-ranked)."""
 DEFAULT_STRENGTHEN_DURING = SolveOptions.strengthen_during
 """Decisions (the first ones; None: all) whose nodes get ``lp`` before they branch."""
 SEARCH_SHARE = 0.7
-"""Share of the time budget the search itself may use: the rest is left to deciding its
+"""Share of the budget the search itself may use: the rest is left to deciding its
 survivors (bisection, the stronger level), even when the search is cut short."""
 MAINTAIN_EVERY = 1024
 """Node expansions between two looks at the shared graph's housekeeping."""
@@ -260,21 +261,35 @@ def solve_unknown(
     outcome = _Outcome([], [], None)
     keep = max(1, max_hypotheses)
     if root is not None:
-        outcome = explore(
-            explorer,
-            root,
-            SearchLimit(portion(deadline, SEARCH_SHARE), max_nodes),
-            keep,
-            tally.add,
-            progress,
-            reserve=keep,
-        )
+        limit = SearchLimit(portion(deadline, SEARCH_SHARE), max_nodes)
+        early = dive(explorer, root, SearchLimit(portion(limit.deadline, DIVE_SHARE), max_nodes))
+        outcome = explore(explorer, root, limit, keep, tally.add, progress, reserve=keep)
+        _join_dive(explorer, tally, outcome, early, keep)
     unexplored = [n.decisions() for n in outcome.unexplored]
     return finish_search(
         log, explorer, tally, outcome.survivors, unexplored, outcome.stop_reason,
         consistency, strengthen_limit, progress, start, messages, rank=rank,
         reserve=outcome.reserve,
     )  # fmt: skip
+
+
+def _join_dive(explorer: Explorer, tally: Tally, outcome: _Outcome, early: Dive, keep: int) -> None:
+    """Count the dive's leaf among the survivors when the exhaustive search did not reach
+    it (it lies in a subtree left unexplored); a complete search reached it itself."""
+    stats = explorer.stats
+    stats.dive_nodes = early.nodes
+    stats.dive_discrepancies = early.discrepancies
+    leaf = early.leaf
+    if leaf is None or outcome.stop_reason is None:
+        return
+    decisions = leaf.decisions()
+    if not any(decisions[: n.depth] == n.decisions() for n in outcome.unexplored):
+        return
+    tally.add(leaf)
+    stats.survivors += 1
+    stats.dive_leaf_added = 1
+    ranked = _best(explorer, [*outcome.survivors, *outcome.reserve, leaf], 2 * keep)
+    outcome.survivors, outcome.reserve = ranked[:keep], ranked[keep:]
 
 
 def finish_search(

@@ -35,14 +35,14 @@ the least-squares fit that may report them instead (:mod:`.witness.fit`)."""
 BEST_ATTEMPTS = 10
 """Beyond ``strengthen_limit`` survivors, the best-ranked are tried until one is not refuted."""
 BISECTION_SHARE = 0.5
-"""Share of the search's time left that bisection may use on the survivors."""
+"""Share of the search's budget left that bisection may use on the survivors."""
 BISECTION_PARTS = 512
 """Parts each survivor's bisection may narrow at most."""
 BISECTION_TOTAL_PARTS = 32_768
-"""Parts the bisections of all survivors together may narrow at most (with a time budget,
-its share of the time bounds them first)."""
+"""Parts the bisections of all survivors together may narrow at most (with a budget, its
+share bounds them first)."""
 BISECTION_PARTS_PER_NODE = 1
-"""Without a time budget, parts the bisections may narrow per node the search created (at
+"""Without a budget, parts the bisections may narrow per node the search created (at
 least ``BISECTION_MIN_PARTS``): bisection then costs about as much as the search did."""
 BISECTION_MIN_PARTS = 256
 Entry = tuple[Hypothesis, Node | None]
@@ -104,16 +104,16 @@ def bisect_survivors(
     explorer: Explorer, survivors: list[Node], limit: int, refute: Refute = refute_by_bisection
 ) -> list[Node]:
     """The survivors that bisection does not prove impossible (:mod:`.bisection`), when
-    there are 2 to ``limit`` of them; it may use ``BISECTION_SHARE`` of the time left to
-    the deadline and ``BISECTION_PARTS`` parts per survivor, ``BISECTION_TOTAL_PARTS`` in
-    all, or without a deadline ``BISECTION_PARTS_PER_NODE`` per node created by the search
-    (at least ``BISECTION_MIN_PARTS``). ``refute`` runs them."""
+    there are 2 to ``limit`` of them; it may use ``BISECTION_SHARE`` of the budget left
+    and ``BISECTION_PARTS`` parts per survivor, ``BISECTION_TOTAL_PARTS`` in all, or
+    without a budget ``BISECTION_PARTS_PER_NODE`` per node created by the search (at least
+    ``BISECTION_MIN_PARTS``). ``refute`` runs them."""
     if len(survivors) < 2 or len(survivors) > limit:
         return survivors  # a lone survivor is left to the witness search to prove
     deadline = portion(explorer.deadline, BISECTION_SHARE)
     bisections = [explorer.bisection(node) for node in survivors]
     total = BISECTION_TOTAL_PARTS
-    if deadline is None:
+    if deadline is None or deadline.unlimited:
         per_node = BISECTION_PARTS_PER_NODE * explorer.stats.created
         total = min(total, max(BISECTION_MIN_PARTS, per_node))
     refuted = refute(bisections, deadline, BISECTION_PARTS, total)

@@ -75,6 +75,14 @@ class SearchStatistics:
     """Time those narrowings took."""
     outlier_options: int = 0
     """Children that take their observation as an outlier (an ``outliers`` declaration)."""
+    dive_nodes: int = 0
+    """Nodes the dive expanded before the exhaustive search (:mod:`.dive`)."""
+    dive_discrepancies: int = -1
+    """Departures from the likeliest children on the path of the leaf the dive found (-1:
+    none found)."""
+    dive_leaf_added: int = 0
+    """1 when the dive's leaf lies in a subtree the exhaustive search left unexplored, and
+    joined the survivors from there."""
 
 
 @dataclass(frozen=True, slots=True)

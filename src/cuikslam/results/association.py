@@ -209,7 +209,7 @@ def truth_verdict(
             True,
             [
                 "truth check: the search stopped on its budget before finding a hypothesis "
-                "(incomplete, not a refutation; raise --time-budget)"
+                "(incomplete, not a refutation; raise --work-budget)"
             ],
         )
     if solution.refuted:
@@ -336,6 +336,6 @@ def _truth_not_reported(
         True,
         [
             "truth check: the true correspondence is not among the survivors found before "
-            "the search stopped on its budget (the search was incomplete; raise --time-budget)"
+            "the search stopped on its budget (the search was incomplete; raise --work-budget)"
         ],
     )

@@ -127,7 +127,7 @@ def certify(
     solution.statistics["witness_budget_exhausted"] = int(stats.budget_exhausted)
     if unfinished:
         why = (
-            "its time budget"
+            "its budget"
             if stats.out_of_time
             else f"its work limit ({max_evaluations} evaluations per hypothesis, "
             f"{max_total_evaluations} in all)"

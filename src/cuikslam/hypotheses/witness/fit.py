@@ -193,7 +193,7 @@ def fit_hypotheses(
 
     A hypothesis that takes observations as outliers is fitted on the log without them
     (an outlier explains nothing). On Lost in the Woods (200 poses) the 176 survivors took
-    88 s. At ``deadline`` (a :func:`time.perf_counter` value) the rest keep no fit (NaN:
+    88 s. When ``deadline`` (a :class:`~cuikslam.budget.Budget`) is spent the rest keep no fit (NaN:
     they rank after the fitted ones of their group) and ``solution.messages`` says how
     many; so do those beyond the first ``FIT_MAX_HYPOTHESES``.
 
@@ -226,7 +226,7 @@ def fit_hypotheses(
         solution.messages.append(
             f"the least-squares fit that ranks equally parsimonious hypotheses was computed "
             f"for {tried} of {len(solution.hypotheses)} "
-            f"({'time budget' if tried < FIT_MAX_HYPOTHESES else 'the first ones only'}); "
+            f"({'budget' if tried < FIT_MAX_HYPOTHESES else 'the first ones only'}); "
             "the others rank after them, by box size"
         )
     return fitted
