@@ -9,7 +9,11 @@ boxes, counts, and the prefixes left pending when its work quantum ran out). The
 expands the top of the tree breadth first into a few prefixes per worker, submits them,
 resubmits pending prefixes (split among idle workers: large subtrees are split again) and
 merges the results; :func:`~.search.finish_search` then does what follows the search,
-exactly as in one process. A task lost with its worker is run again by Dask (or
+exactly as in one process. The result's envelope joins the survivors' boxes the workers
+send; the subtrees a budget leaves unexplored (on a worker or never sent) are not
+materialized on the client, so the envelope then falls back to the root's boxes, which hold
+the truth whatever the correspondence (wider than one process's envelope, never wrong). A
+task lost with its worker is run again by Dask (or
 resubmitted here): a subtree is counted once its task's result has arrived, never before.
 
 Dask is imported only when a search runs on a cluster; :mod:`cuikslam.cluster` makes
@@ -173,6 +177,7 @@ def search_distributed(
     messages: list[str] = []
     root = explorer.root()
     tally = Tally(explorer, on_survivor)
+    tally.envelope.set_root(root)  # the fallback for unexplored prefixes
     keep = max(1, max_hypotheses)
     searching = portion(deadline, SEARCH_SHARE)  # the rest decides its survivors
     run = _Run(explorer, searching, max_nodes, keep)

@@ -258,6 +258,7 @@ def solve_unknown(
     messages: list[str] = []
     root = explorer.root()
     tally = Tally(explorer, on_survivor)
+    tally.envelope.set_root(root)
     outcome = _Outcome([], [], None)
     keep = max(1, max_hypotheses)
     if root is not None:
@@ -266,10 +267,12 @@ def solve_unknown(
         outcome = explore(explorer, root, limit, keep, tally.add, progress, reserve=keep)
         _join_dive(explorer, tally, outcome, early, keep)
     unexplored = [n.decisions() for n in outcome.unexplored]
+    for node in outcome.unexplored:  # the truth may lie under any of them
+        tally.envelope.add(node)
     return finish_search(
         log, explorer, tally, outcome.survivors, unexplored, outcome.stop_reason,
         consistency, strengthen_limit, progress, start, messages, rank=rank,
-        reserve=outcome.reserve,
+        reserve=outcome.reserve, unexplored_covered=True,
     )  # fmt: skip
 
 
@@ -307,6 +310,7 @@ def finish_search(
     refute: Refute = refute_by_bisection,
     rank: Rank | None = None,
     reserve: list[Node] | None = None,
+    unexplored_covered: bool = False,
 ) -> Solution:
     """What follows the search, wherever it ran: the survivors' bisection, their ranking
     (``rank``, when given), the stronger level in that order, the reported hypotheses,
@@ -317,10 +321,14 @@ def finish_search(
     (``stop_reason``), the next one to explore last; ``refute`` runs the survivors'
     bisections (on a cluster, their share on each worker); ``reserve`` are the next
     best-ranked survivors, bisected in turn to take the place of those it refutes.
+    ``unexplored_covered`` says the boxes of the ``unexplored`` subtrees' nodes are in
+    ``tally.envelope`` already; else the envelope takes the root's boxes for them.
     """
     problem = explorer.problem
     stats = explorer.stats
     complete = stop_reason is None
+    if unexplored and not unexplored_covered:
+        tally.envelope.cover_root()
     if not complete:
         stats.unexplored_subtrees = len(unexplored)
         shown = "; ".join(_prefix(d) for d in unexplored[-SHOWN_PREFIXES:][::-1])
@@ -426,5 +434,6 @@ def finish_search(
         messages=messages,
         correspondence=correspondence,
         outliers=outliers,
+        envelope=tally.envelope.boxes(),
         unreported=ranked.unreported,
     )

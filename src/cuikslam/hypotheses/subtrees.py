@@ -102,6 +102,7 @@ class SubtreeResult:
     material when the rank key is at most the task's ``threshold``."""
     hull_lo: np.ndarray
     hull_hi: np.ndarray
+    """The envelope of the task's survivors, flat (:meth:`.envelope.Envelope.boxes_of`)."""
     counts: dict[str, int]
     """Fields of :class:`~.tree.SearchStatistics` that add up."""
     peak_frontier: int
@@ -228,7 +229,7 @@ def explore_prefixes(
             decided.append(node.decisions())
             placed.append(at)
         best_at[tuple(node.decisions())] = at
-        tally.add_boxes(*explorer.graph.values(node.overlay, tally._cols))
+        tally.envelope.add(node)
 
     best_at: dict[tuple[int, ...], tuple[int, ...]] = {}
 
@@ -249,8 +250,8 @@ def explore_prefixes(
             for s in outcome.survivors
             for d, key in [(tuple(s.decisions()), _rank_key(explorer, s))]
         ],
-        hull_lo=tally._lo,
-        hull_hi=tally._hi,
+        hull_lo=tally.envelope.lo,
+        hull_hi=tally.envelope.hi,
         counts=counts,
         peak_frontier=stats.peak_frontier,
         done=float(stats.explored_fraction),

@@ -1,6 +1,6 @@
 """What every survivor of a search contributes to its summary, reported in detail or not:
-its assignment (for the correspondence summary, up to ``MAX_TALLIED`` of them) and its pose
-boxes (joined into the hull that holds whatever the correspondence)."""
+its assignment (for the correspondence summary, up to ``MAX_TALLIED`` of them) and its boxes
+(joined into the :class:`~.envelope.Envelope`, with those of the subtrees left unexplored)."""
 
 from __future__ import annotations
 
@@ -8,6 +8,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from cuikslam.hypotheses.envelope import Envelope
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.tree import Node
@@ -32,15 +33,12 @@ class Tally:
         while any(name.startswith(self.new_mark) for name in explorer.problem.named):
             self.new_mark += "+"
         self._position: dict[tuple[int, ...], int] = {}
-        pose_ids = sorted(explorer.problem.pose_x)
-        xs = np.array([explorer.problem.pose_x[q] for q in pose_ids], dtype=np.int64)
-        self._cols = (xs[:, None] + np.arange(3)).ravel()
-        self._lo = np.full(len(self._cols), np.inf)
-        self._hi = np.full(len(self._cols), -np.inf)
+        self.envelope = Envelope(explorer)
+        """Every survivor's boxes, and those of the subtrees left unexplored."""
 
     def add(self, node: Node) -> None:
         self.add_assignment(node.decisions())
-        self.add_boxes(*self.explorer.graph.values(node.overlay, self._cols))
+        self.envelope.add(node)
 
     def add_assignment(self, decisions: list[int]) -> None:
         """A survivor's assignment, given by its decisions (landmark numbers)."""
@@ -67,9 +65,8 @@ class Tally:
                 self.assignments.append(assignment)
 
     def add_boxes(self, lo: np.ndarray, hi: np.ndarray) -> None:
-        """Pose boxes (at the columns ``_cols``) of survivors, joined into the hull."""
-        np.minimum(self._lo, lo, out=self._lo)
-        np.maximum(self._hi, hi, out=self._hi)
+        """Flat envelope boxes of survivors (:meth:`.Envelope.boxes_of`), joined in."""
+        self.envelope.join(lo, hi)
 
     def discard(self, node: Node) -> None:
         """Forget a survivor proven impossible after the search (its pose boxes stay in the
@@ -93,5 +90,7 @@ class Tally:
         return [a for a in self.assignments if a is not None]
 
     def poses(self) -> np.ndarray:
-        """Hull over the survivors of every pose box, shape (n_poses, 3, 2)."""
-        return np.stack([self._lo, self._hi], axis=-1).reshape(-1, 3, 2)
+        """Every pose's envelope box (survivors and unexplored subtrees), shape
+        (n_poses, 3, 2)."""
+        n = len(self.envelope.pose_cols)
+        return np.stack([self.envelope.lo[:n], self.envelope.hi[:n]], axis=-1).reshape(-1, 3, 2)

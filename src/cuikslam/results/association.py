@@ -22,12 +22,20 @@ from dataclasses import dataclass, field
 
 from cuikslam.log.records import Log
 from cuikslam.results.measurement_check import Outside
-from cuikslam.results.solution import OUTLIER, Hypothesis, Solution, check_truth
+from cuikslam.results.solution import (
+    OUTLIER,
+    Hypothesis,
+    Solution,
+    TruthReport,
+    check_envelope,
+    check_truth,
+)
 from cuikslam.results.summary import summary_holds
 from cuikslam.simulate.truth import GroundTruth
 
 __all__ = [
     "TruthVerdict",
+    "envelope_report",
     "named_landmarks",
     "partition",
     "rank_of",
@@ -202,7 +210,50 @@ def truth_verdict(
     Returns
     -------
     TruthVerdict
+        With an envelope (unknown correspondence), a last line says whether it holds the
+        truth (:func:`envelope_report`); a miss makes the verdict fail.
     """
+    verdict = _hypotheses_verdict(solution, truth, named, outside, unchecked)
+    report = envelope_report(solution, truth, outside)
+    if report is None:
+        return verdict
+    if report.ok:
+        n = len(solution.envelope.pose_ids)
+        m = len(solution.envelope.observations)
+        verdict.lines.append(
+            f"envelope: {n} poses and {m} observations, all contain the truth "
+            f"({report.checked} bounds)"
+        )
+        return verdict
+    verdict.lines.append(f"envelope: {len(report.misses)} boxes miss the truth:")
+    verdict.lines.extend(f"  {miss}" for miss in report.misses[:MISSES_SHOWN])
+    return TruthVerdict(False, verdict.lines)
+
+
+def envelope_report(
+    solution: Solution, truth: GroundTruth, outside: Collection[int] = ()
+) -> TruthReport | None:
+    """Whether ``solution``'s envelope holds the true poses and the true landmark of every
+    observation (those in ``outside``, true outliers, unchecked); None without an envelope."""
+    envelope = solution.envelope
+    if envelope is None:
+        return None
+    skip = set(outside)
+    observed = [
+        None if i in skip or a == OUTLIER else truth.exact_landmark(a)
+        for i, a in enumerate(truth.assignment)
+    ]
+    return check_envelope(envelope, truth.pose_ids, truth.exact_poses(), observed)
+
+
+def _hypotheses_verdict(
+    solution: Solution,
+    truth: GroundTruth,
+    named: Collection[str],
+    outside: Collection[int],
+    unchecked: Collection[int],
+) -> TruthVerdict:
+    """The verdict on the reported hypotheses and the correspondence summary."""
     unreported = int(solution.statistics.get("survivors", 0))
     if not solution.hypotheses and not solution.complete and not unreported:
         return TruthVerdict(

@@ -26,7 +26,7 @@ from cuikslam import __version__
 from cuikslam._atomic import atomic_write_text
 from cuikslam._json import dumps
 from cuikslam.errors import InputFileError
-from cuikslam.results.solution import Hypothesis, Solution
+from cuikslam.results.solution import Envelope, Hypothesis, Solution
 
 __all__ = ["read_result_file", "solution_to_json", "write_result_csv", "write_result_file"]
 
@@ -85,7 +85,39 @@ def solution_to_json(solution: Solution) -> dict[str, Any]:
             else {"correspondence": _correspondence_json(solution.correspondence)}
         ),
         **({} if solution.outliers is None else {"outliers": solution.outliers}),
+        **({} if solution.envelope is None else {"envelope": _envelope_json(solution.envelope)}),
     }
+
+
+def _envelope_json(envelope: Envelope) -> dict[str, Any]:
+    """The envelope: pose id -> its (x, y, theta) box, and each observation's (x, y) box."""
+    return {
+        "poses": {
+            str(p): {"x": b[0], "y": b[1], "theta": b[2]}
+            for p, b in zip(envelope.pose_ids, _bounds(envelope.poses), strict=True)
+        },
+        "observations": [{"x": b[0], "y": b[1]} for b in _bounds(envelope.observations)],
+    }
+
+
+def _read_envelope(doc: Any) -> Envelope | None:
+    """The envelope read back (null sides infinite again); None without one."""
+    if doc is None:
+        return None
+    poses = doc["poses"]
+    boxes = [
+        [_read_bounds(poses[p][k], f"envelope pose {p} {k}") for k in ("x", "y", "theta")]
+        for p in poses
+    ]
+    seen = [
+        [_read_bounds(o[k], f"envelope observation {i} {k}") for k in ("x", "y")]
+        for i, o in enumerate(doc["observations"])
+    ]
+    return Envelope(
+        [int(p) for p in poses],
+        np.array(boxes, dtype=np.float64).reshape(-1, 3, 2),
+        np.array(seen, dtype=np.float64).reshape(-1, 2, 2),
+    )
 
 
 def _correspondence_json(correspondence: dict[str, Any]) -> dict[str, Any]:
@@ -119,6 +151,11 @@ def _finite(solution: Solution) -> bool:
     timings, the pose hull."""
     hull = (solution.correspondence or {}).get("pose_hull")
     if hull is not None and np.isnan(np.asarray(hull, dtype=float)).any():
+        return False
+    envelope = solution.envelope
+    if envelope is not None and (
+        np.isnan(envelope.poses).any() or np.isnan(envelope.observations).any()
+    ):
         return False
     for value in (*solution.statistics.values(), *solution.timings.values()):
         if not (
@@ -229,6 +266,7 @@ def read_result_file(path: str | os.PathLike[str]) -> Solution:
             messages=list(doc.get("messages", [])),
             correspondence=_read_correspondence(doc.get("correspondence")),
             outliers=doc.get("outliers"),
+            envelope=_read_envelope(doc.get("envelope")),
         )
     except (KeyError, TypeError, ValueError, AttributeError) as err:
         problem = f"missing key {err}" if isinstance(err, KeyError) else str(err)

@@ -22,9 +22,11 @@ __all__ = [
     "NOT_REFUTED",
     "OUTLIER",
     "PROVEN",
+    "Envelope",
     "Hypothesis",
     "Solution",
     "TruthReport",
+    "check_envelope",
     "check_truth",
     "no_hypothesis",
 ]
@@ -108,6 +110,21 @@ class Hypothesis:
 
 
 @dataclass
+class Envelope:
+    """Unknown correspondence: boxes that hold the truth whenever the log's intervals do,
+    whatever the correspondence and whatever stopped the search (see
+    :mod:`cuikslam.hypotheses.envelope`)."""
+
+    pose_ids: list[int]
+    """Pose ids, increasing."""
+    poses: np.ndarray
+    """Shape (n_poses, 3, 2): each pose's (x, y, theta) box (headings unwrapped)."""
+    observations: np.ndarray
+    """Shape (n_observations, 2, 2), in log order: the (x, y) box of the landmark each
+    observation sees (unbounded for one that may be an outlier)."""
+
+
+@dataclass
 class Solution:
     """Every surviving hypothesis, best-ranked first, and how the solve went."""
 
@@ -125,6 +142,10 @@ class Solution:
     outliers: dict | None = None
     """When the log declares outliers: the declaration and the observations proven to be
     outliers (JSON-ready; see :func:`cuikslam.outliers.outliers_to_json`)."""
+    envelope: Envelope | None = None
+    """Unknown correspondence: each pose's and each observed landmark's box whatever the
+    correspondence, over the survivors and every subtree a budget left unexplored; None
+    for known correspondence or a refuted log."""
     unreported: list[list[str]] = field(default_factory=list, repr=False)
     """Unknown correspondence: the assignments of survivors the search found but did not
     report in detail (the first ``MAX_UNREPORTED`` of them; never written to files), from
@@ -224,6 +245,26 @@ def check_truth(
         checked += _check_xy(
             f"landmark {landmark_id}", hypothesis.landmark(landmark_id), xy, misses
         )
+    return TruthReport(misses, checked)
+
+
+def check_envelope(
+    envelope: Envelope,
+    pose_ids: list[int],
+    poses_xyt: Sequence[Sequence[ExactLike]],
+    observed_xy: Sequence[Sequence[ExactLike] | None],
+) -> TruthReport:
+    """Check, exactly, that ``envelope`` holds the true poses (headings modulo 2π) and the
+    true landmark each observation sees (``observed_xy``, in log order; None: unchecked)."""
+    misses: list[str] = []
+    checked = 0
+    row_of = {p: i for i, p in enumerate(envelope.pose_ids)}
+    for pose_id, truth in zip(pose_ids, poses_xyt, strict=True):
+        if pose_id in row_of:
+            checked += _check_pose(pose_id, envelope.poses[row_of[pose_id]], truth, misses)
+    for i, xy in enumerate(observed_xy):
+        if xy is not None and i < len(envelope.observations):
+            checked += _check_xy(f"observation {i}", envelope.observations[i], xy, misses)
     return TruthReport(misses, checked)
 
 
