@@ -1,0 +1,93 @@
+"""The dive finds a hypothesis early, cuts nothing, and its leaf is a survivor of the search.
+
+Random true worlds from the independent generator (:mod:`worlds`). The dive follows the
+same rules as the exhaustive search, so every leaf it contributes must be a survivor of a
+complete search; the truth is never lost whatever the budget (the envelope holds it:
+:mod:`test_envelope`), and a search cut by its budget after the dive found a leaf still
+reports a hypothesis.
+"""
+
+from __future__ import annotations
+
+import pytest
+from hypothesis import HealthCheck, assume, given, note, settings
+
+from cuikslam.budget import Budget
+from cuikslam.hypotheses import solve_unknown
+from cuikslam.hypotheses.dive import dive
+from cuikslam.hypotheses.explorer import Explorer
+from cuikslam.hypotheses.problem import build_problem
+from cuikslam.hypotheses.tree import SearchLimit
+from cuikslam.results.association import partition
+from cuikslam.simulate import simulate_random_world
+from worlds import World, worlds
+
+HEALTH = [HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large]
+SMALL = {"poses": (4, 8), "landmarks": (2, 5), "max_observations": 14}
+WORK_CUTS = (1.0, 3e3, 1e4, 3e4)
+
+
+def _named(log) -> set[str]:
+    return {p.landmark for p in log.landmark_priors} | {
+        str(o.landmark) for o in log.observations if o.landmark is not None
+    }
+
+
+def check_dive(world: World, naming: str) -> None:
+    log = world.log(naming)
+    note("\n".join(world.lines(naming)))
+    named = _named(log)
+    everything: list[list[str]] = []
+    complete = solve_unknown(log, consistency="hull", on_survivor=everything.append)
+    assume(complete.complete)
+    survivors = {tuple(partition(a, named)) for a in everything}
+    for work in WORK_CUTS:
+        found: list[list[str]] = []
+        cut = solve_unknown(
+            log, consistency="hull", deadline=Budget.start(work=work), on_survivor=found.append
+        )
+        assert {tuple(partition(a, named)) for a in found} <= survivors, work
+        if cut.statistics["dive_discrepancies"] >= 0 and not cut.refuted:
+            assert cut.hypotheses, (work, cut.messages)
+
+
+@pytest.mark.parametrize("naming", ["none", "mixed"])
+@settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=HEALTH)
+@given(world=worlds(**SMALL))
+def test_the_dive_adds_only_survivors_of_the_search(world: World, naming: str) -> None:
+    check_dive(world, naming)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("naming", ["none", "mixed"])
+@settings(max_examples=300, deadline=None, suppress_health_check=HEALTH)
+@given(world=worlds(**SMALL))
+def test_the_dive_adds_only_survivors_of_the_search_many(world: World, naming: str) -> None:
+    check_dive(world, naming)
+
+
+def test_the_dive_leaves_the_search_statistics_as_they_were() -> None:
+    log, _ = simulate_random_world(seed=3, n_poses=20, n_landmarks=6, unknown=True)
+    explorer = Explorer(build_problem(log), 1e-3, "hull", 0, True)
+    root = explorer.root()
+    before = dict(vars(explorer.stats))
+    found = dive(explorer, root, SearchLimit(max_nodes=10_000))
+    assert found.leaf is not None and found.nodes >= len(explorer.problem.decisions)
+    assert found.discrepancies == 0  # the likeliest path holds a survivor here
+    assert dict(vars(explorer.stats)) == before
+
+
+def test_the_dive_reaches_a_leaf_of_a_sparse_world_within_its_share() -> None:
+    """A 60-pose sparse world of 15 look-alike landmarks (189 readings, none labelled): the
+    dive's quarter of the search's budget reaches a leaf along the likeliest path, and
+    the search with the rest completes with that leaf among its survivors."""
+    log, _ = simulate_random_world(
+        seed=42, n_poses=60, n_landmarks=15, size=(30.0, 20.0), max_range=6.0, unknown=True
+    )
+    found: list[list[str]] = []
+    solution = solve_unknown(
+        log, consistency="hull", deadline=Budget.start(work=1e7), on_survivor=found.append
+    )
+    assert solution.statistics["dive_discrepancies"] == 0
+    assert solution.statistics["dive_nodes"] >= len(log.observations)
+    assert solution.complete and solution.hypotheses
