@@ -16,7 +16,7 @@ from cuikslam.options import SolveOptions
 from cuikslam.results.association import named_landmarks, true_outliers, truth_verdict
 from cuikslam.results.io import write_result_csv, write_result_file
 from cuikslam.results.measurement_check import check_log
-from cuikslam.results.overview import overview_lines
+from cuikslam.results.overview import envelope_lines, overview_lines
 from cuikslam.results.solution import Solution
 from cuikslam.results.table import hypothesis_table, summary_table
 from cuikslam.simulate.truth import GroundTruth, check_truth_fits, read_truth_file
@@ -56,6 +56,9 @@ def print_solution(
     """
     for message in solution.messages:
         console.print(message)
+    if solution.envelope is not None and (not solution.complete or len(solution.hypotheses) != 1):
+        for line in envelope_lines(solution.envelope, solution.complete):
+            console.print(line, highlight=False, markup=False)
     if not solution.hypotheses:
         return
     if table is None:

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cuikslam.results.solution import Hypothesis
+from cuikslam.results.solution import Envelope, Hypothesis
 
-__all__ = ["BoxStatistics", "box_statistics", "overview_lines", "worst_poses"]
+__all__ = ["BoxStatistics", "box_statistics", "envelope_lines", "overview_lines", "worst_poses"]
 
 FULL_TURN = 2.0 * math.pi
 """A heading box this wide holds every heading."""
@@ -135,4 +135,34 @@ def overview_lines(hypothesis: Hypothesis, title: str, worst: int = 5) -> list[s
             box = hypothesis.poses[i]
             bounds = "  ".join(f"[{lo:.3f}, {hi:.3f}]" for lo, hi in box.tolist())
             lines.append(f"    r {hypothesis.pose_ids[i]}: {bounds}")
+    return lines
+
+
+def envelope_lines(envelope: Envelope, complete: bool) -> list[str]:
+    """A few lines on the envelope: the boxes that hold the truth whatever the
+    correspondence (and, after an incomplete search, whatever it did not explore).
+
+    Parameters
+    ----------
+    envelope : Envelope
+        The result's envelope.
+    complete : bool
+        Whether the search was complete (the envelope is then the survivors' hull).
+    """
+    where = "the survivors" if complete else "the survivors and every unexplored subtree"
+    lines = [f"Envelope (holds the truth whatever the correspondence; over {where}):"]
+    if len(envelope.pose_ids):
+        labels = [f"r {p}" for p in envelope.pose_ids]
+        stats = box_statistics(envelope.poses, labels, ("x", "y", "θ"))
+        median, widest = _describe(stats, (_metres, _metres, _radians))
+        lines.append(f"  {len(envelope.pose_ids):,} poses; box widths, median: {median}")
+        lines.append(f"  widest: {widest}")
+    if len(envelope.observations):
+        labels = [f"o {i}" for i in range(len(envelope.observations))]
+        stats = box_statistics(envelope.observations, labels, ("x", "y"))
+        median, widest = _describe(stats, (_metres, _metres))
+        lines.append(
+            f"  the landmark of each of {len(envelope.observations):,} observations; "
+            f"box widths, median: {median}"
+        )
     return lines
