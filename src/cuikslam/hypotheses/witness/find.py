@@ -135,9 +135,9 @@ class _Meter:
 
 
 def evaluation_cost(model: HypothesisModel) -> float:
-    """Work units of one evaluation of ``model``'s residuals and Jacobian: one per parameter
-    and per check, so that the work does not depend on the machine."""
-    return COSTS["residual"] * (model.n_params + model.n_checks)
+    """Work units of one evaluation of ``model``'s residuals and Jacobian: a fixed cost, and
+    one per parameter and per check, so that the work does not depend on the machine."""
+    return COSTS["evaluation"] + COSTS["residual"] * (model.n_params + model.n_checks)
 
 
 def _polish_equalities(model: HypothesisModel, p: np.ndarray, iterations: int = 4) -> np.ndarray:
@@ -356,6 +356,8 @@ class WitnessSearch:
                 self.tried += 1
                 meter.quota_end = None if quota is None else meter.used + quota
                 try:
+                    spend(self.deadline, COSTS["start"])
+                    meter.tick()  # a start counts as an evaluation, even one that fails
                     x0, centre = self._start(self.tried - 1)
                     p, residual, box = _solve_margins(model, x0, meter, centre)
                 except _OverQuota:
