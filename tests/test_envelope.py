@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, note, settings
+from hypothesis import HealthCheck, assume, given, note, settings
 
 from _exact import MP, angle_inside, mpf
 from cuikslam.hypotheses import solve_unknown
@@ -156,3 +156,42 @@ def test_the_split_search_envelope_holds_the_truth(max_nodes: int | None) -> Non
         alone = solve_unknown(log, consistency="hull")
         assert np.array_equal(split.envelope.poses, alone.envelope.poses)
         assert np.array_equal(split.envelope.observations, alone.envelope.observations)
+
+
+def _interrupting(children, n: int, calls: list[int]):
+    """``Explorer.children`` that raises KeyboardInterrupt at its ``n``-th call (Ctrl-C);
+    ``calls`` counts them."""
+
+    def patched(explorer, node):
+        calls.append(1)
+        if len(calls) == n:
+            raise KeyboardInterrupt
+        return children(explorer, node)
+
+    return patched
+
+
+@pytest.mark.parametrize("naming", ["none", "mixed"])
+@settings(max_examples=6, deadline=None, derandomize=True, suppress_health_check=HEALTH)
+@given(world=worlds(**SMALL))
+def test_ctrl_c_in_the_search_returns_a_result_whose_envelope_holds_the_truth(
+    world: World, naming: str
+) -> None:
+    """Ctrl-C at the n-th node expansion (the dive's or the search's): solve returns, says
+    it was interrupted, and its envelope holds the exact truth."""
+    from cuikslam.hypotheses.explorer import Explorer
+    from cuikslam.solver import warm_up
+
+    warm_up(unknown=True)  # its own small search, not to be interrupted here
+    log = world.log(naming)
+    assume(log.has_unknown_correspondence)
+    note("\n".join(world.lines(naming)))
+    for n in (1, 2, 5, 13):
+        calls: list[int] = []
+        with pytest.MonkeyPatch.context() as patch:
+            patch.setattr(Explorer, "children", _interrupting(Explorer.children, n, calls))
+            solution = solve(log, consistency="hull", certify_limit=0)
+        interrupted = len(calls) >= n  # else the search needed fewer expansions
+        assert (solution.statistics["budget_bound"] == "interrupt") == interrupted
+        assert any("interrupted (Ctrl-C)" in m for m in solution.messages) == interrupted
+        assert not envelope_misses(solution, world.truth), n

@@ -97,8 +97,11 @@ class Meter:
     spent: float = 0.0
     """Work units spent so far."""
     bound: str | None = None
-    """The first limit that stopped a stage: ``"work"``, ``"time"`` or None."""
+    """The first limit that stopped a stage: ``"work"``, ``"time"``, ``"interrupt"``
+    (Ctrl-C) or None."""
     started: float = field(default_factory=time.perf_counter)
+    stopped: bool = False
+    """Set by :meth:`stop`."""
     _lock: threading.Lock = field(default_factory=threading.Lock, repr=False)
 
     def add(self, units: float) -> None:
@@ -111,6 +114,12 @@ class Meter:
         """Record that ``limit`` stopped a stage (the first one recorded stays)."""
         if self.bound is None:
             self.bound = limit
+
+    def stop(self) -> None:
+        """Spend every budget on this meter at once (Ctrl-C: each stage stops at its next
+        look, soundly, and the solve returns what it has)."""
+        self.stopped = True
+        self.note("interrupt")
 
 
 @dataclass(frozen=True, eq=False)
@@ -150,7 +159,10 @@ class Budget:
         return max(0.0, self.work - self.meter.spent)
 
     def expired(self) -> bool:
-        """True once the work is spent or the wall clock has passed (recorded on the meter)."""
+        """True once the work is spent, the wall clock has passed, or the meter was stopped
+        (recorded on the meter)."""
+        if self.meter.stopped:
+            return True
         if self.meter.spent >= self.work:
             self.meter.note("work")
             return True

@@ -236,6 +236,11 @@ def _record_budget(solution: Solution, budget: Budget) -> None:
     stats["work_budget"] = None if budget.work == math.inf else budget.work
     stats["work_spent"] = round(budget.meter.spent)
     stats["budget_bound"] = budget.meter.bound
+    if budget.meter.bound == "interrupt":
+        solution.messages.append(
+            "interrupted (Ctrl-C): every stage stopped where it was; the result holds what "
+            "was proven by then (with unknown correspondence, the envelope holds the truth)"
+        )
     if budget.meter.bound == "time":
         solution.messages.append(
             "the wall-clock cap (--time-budget) stopped a stage before its work budget: "

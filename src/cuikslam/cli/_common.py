@@ -17,6 +17,7 @@ from pathlib import Path
 
 __all__ = [
     "EXIT_INPUT",
+    "EXIT_INTERRUPTED",
     "EXIT_OK",
     "EXIT_RESULT",
     "FIGURE_SUFFIXES",
@@ -38,6 +39,8 @@ EXIT_RESULT = 1
 """The result itself reports a problem (an inconsistent log, a box that misses the truth)."""
 EXIT_INPUT = 2
 """Bad input or usage."""
+EXIT_INTERRUPTED = 130
+"""Ctrl-C (the shell's code for SIGINT); a search it stopped still wrote its result."""
 
 
 class CommandError(Exception):

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 from cuikslam import __version__
 from cuikslam.budget import DEFAULT_WORK_BUDGET, WORK_PER_POSE
-from cuikslam.cli._common import EXIT_INPUT, CommandError, int_at_least
+from cuikslam.cli._common import EXIT_INPUT, EXIT_INTERRUPTED, CommandError, int_at_least
 from cuikslam.cli.commands import (
     cmd_evaluate,
     cmd_paper,
@@ -313,7 +313,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_INPUT
     except KeyboardInterrupt:
         print("cuikslam: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
 
 
 def entry() -> None:

@@ -9,7 +9,13 @@ from contextlib import contextmanager
 from rich.console import Console
 
 from cuikslam._atomic import atomic_open
-from cuikslam.cli._common import CommandError, check_output_path, progress_bar, write_output
+from cuikslam.cli._common import (
+    EXIT_INTERRUPTED,
+    CommandError,
+    check_output_path,
+    progress_bar,
+    write_output,
+)
 from cuikslam.cli.warm_up import note_compiling
 from cuikslam.log.reader import read_log_file
 from cuikslam.options import SolveOptions
@@ -191,4 +197,6 @@ def run_solve(
         status = 1
     if solution.refuted:
         status = 1
+    if solution.statistics.get("budget_bound") == "interrupt":
+        status = EXIT_INTERRUPTED
     return status

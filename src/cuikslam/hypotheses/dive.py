@@ -56,7 +56,8 @@ def dive(explorer: Explorer, root: Node, limit: SearchLimit) -> Dive:
     """The first leaf of a limited discrepancy search from ``root``, within ``limit``.
 
     The explorer's statistics are left as they were: the exhaustive search that follows
-    counts its own nodes (the dive's are in :attr:`Dive.nodes`).
+    counts its own nodes (the dive's are in :attr:`Dive.nodes`). Ctrl-C stops the budget's
+    meter and returns what the dive has.
 
     Parameters
     ----------
@@ -82,6 +83,10 @@ def dive(explorer: Explorer, root: Node, limit: SearchLimit) -> Dive:
                 break
             if limit.exhausted(found.nodes) is not None:
                 break
+    except KeyboardInterrupt:  # Ctrl-C: the search that follows stops at once too
+        if limit.deadline is None:
+            raise
+        limit.deadline.meter.stop()
     finally:
         for f in fields(stats):
             setattr(stats, f.name, saved[f.name])

@@ -41,7 +41,7 @@ from cuikslam.hypotheses.survivors import (
     unreported,
 )
 from cuikslam.hypotheses.tally import Tally
-from cuikslam.hypotheses.tree import Node, SearchLimit
+from cuikslam.hypotheses.tree import Node, SearchLimit, stop_reason
 from cuikslam.log.records import Log
 from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
@@ -95,10 +95,11 @@ def explore(
 
     Every survivor is counted (and passed to ``on_survivor``); the ``keep`` best-ranked are
     returned, and the ``reserve`` next ones apart. A budget stop returns the pending
-    subtrees as ``unexplored``.
+    subtrees as ``unexplored``; so does Ctrl-C, which also stops the budget's meter, so
+    that the stages after the search stop at once and the result (with its envelope) is
+    returned.
     """
     stats, graph = explorer.stats, explorer.graph
-    n_decisions = len(explorer.problem.decisions)
     stack = start[::-1] if isinstance(start, list) else [start]
     survivors: list[Node] = []
     done = 0.0
@@ -108,35 +109,64 @@ def explore(
         reason = budget.exhausted(expanded)
         if reason is not None:
             break
-        node = stack.pop()
-        if node.depth == n_decisions:
-            done += node.share
-            if explorer.refuted_leaf(node):
-                continue
-            stats.survivors += 1
-            survivors.append(node)
-            if on_survivor is not None:
-                on_survivor(node)
-            if len(survivors) > 2 * (keep + reserve):
-                survivors = _best(explorer, survivors, keep + reserve)
-            continue
-        applications = graph.applications
-        kids, options = explorer.children(node)
-        expanded += 1
-        spend(
-            budget.deadline,
-            COSTS["node"] + COSTS["operator"] * (graph.applications - applications),
-        )
-        done += node.share * (options - len(kids)) / options
-        stack.extend(reversed(kids))
+        before = expanded
+        try:
+            done, expanded = _step(
+                explorer, stack, survivors, done, expanded, on_survivor, budget.deadline
+            )
+        except KeyboardInterrupt:  # Ctrl-C: what is pending becomes the unexplored part
+            if budget.deadline is None:
+                raise
+            budget.deadline.meter.stop()
+            reason = stop_reason(budget.deadline)
+            break
+        if len(survivors) > 2 * (keep + reserve):
+            survivors = _best(explorer, survivors, keep + reserve)
         stats.peak_frontier = max(stats.peak_frontier, len(stack))
-        if expanded % MAINTAIN_EVERY == 0:
+        if expanded > before and expanded % MAINTAIN_EVERY == 0:
             stack, survivors = _maintain(graph, stack, survivors)
             if progress is not None:
                 progress(int(1000 * done), 1000)
     stats.explored_fraction = min(1.0, done)
     ranked = _best(explorer, survivors, keep + reserve)
     return _Outcome(ranked[:keep], stack if reason else [], reason, ranked[keep:])
+
+
+def _step(
+    explorer: Explorer,
+    stack: list[Node],
+    survivors: list[Node],
+    done: float,
+    expanded: int,
+    on_survivor: Callable[[Node], None] | None,
+    deadline: Budget | None,
+) -> tuple[float, int]:
+    """Take the next node off ``stack``: a leaf is counted and kept when not refuted, another
+    node is expanded and its children pushed. Returns the share of the tree decided and the
+    nodes expanded, updated. A node whose step an interrupt cuts is put back on the stack
+    (with its children, if they were pushed: the pending part may then overlap, which only
+    widens what is left unexplored)."""
+    graph = explorer.graph
+    node = stack.pop()
+    finished = False
+    try:
+        if node.depth == len(explorer.problem.decisions):
+            if not explorer.refuted_leaf(node):
+                explorer.stats.survivors += 1
+                survivors.append(node)
+                if on_survivor is not None:
+                    on_survivor(node)
+            finished = True
+            return done + node.share, expanded
+        applications = graph.applications
+        kids, options = explorer.children(node)
+        stack.extend(reversed(kids))
+        finished = True
+    finally:
+        if not finished:
+            stack.append(node)
+    spend(deadline, COSTS["node"] + COSTS["operator"] * (graph.applications - applications))
+    return done + node.share * (options - len(kids)) / options, expanded + 1
 
 
 def _maintain(

@@ -15,6 +15,7 @@ __all__ = [
     "Node",
     "SearchLimit",
     "SearchStatistics",
+    "stop_reason",
 ]
 
 AMBIGUITY_LP_MIN_DECISIONS = 64
@@ -118,6 +119,14 @@ class Node:
         return out[::-1]
 
 
+def stop_reason(deadline: Budget) -> str:
+    """Why a spent budget stopped the search, in words (``"work budget"``, ``"time
+    budget"``, ``"interrupt (Ctrl-C)"``)."""
+    if deadline.meter.bound == "interrupt":
+        return "interrupt (Ctrl-C)"
+    return f"{deadline.meter.bound} budget"
+
+
 @dataclass
 class SearchLimit:
     """When the search stops before it is complete (None: no limit)."""
@@ -130,7 +139,7 @@ class SearchLimit:
         """Why the search must stop now (``"work budget"``, ``"time budget"``, ``"node
         budget"``), or None."""
         if self.deadline is not None and self.deadline.expired():
-            return f"{self.deadline.meter.bound} budget"
+            return stop_reason(self.deadline)
         if self.max_nodes is not None and nodes >= self.max_nodes:
             return "node budget"
         return None
