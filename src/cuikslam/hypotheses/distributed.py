@@ -34,6 +34,7 @@ import numpy as np
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import COSTS, Budget, deadline_after, expired, portion, remaining, spend
 from cuikslam.hypotheses.bisection import Bisection, allotment, refute_by_bisection
+from cuikslam.hypotheses.dive import DIVE_SHARE, Dive, dive
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.problem import build_problem
@@ -43,6 +44,7 @@ from cuikslam.hypotheses.search import (
     DEFAULT_STRENGTHEN_LIMIT,
     SEARCH_SHARE,
     Rank,
+    _rank_key,
     finish_search,
 )
 from cuikslam.hypotheses.subtrees import (
@@ -54,7 +56,7 @@ from cuikslam.hypotheses.subtrees import (
     replay_all,
 )
 from cuikslam.hypotheses.tally import Tally
-from cuikslam.hypotheses.tree import Node, SearchStatistics
+from cuikslam.hypotheses.tree import Node, SearchLimit, SearchStatistics
 from cuikslam.log.records import Log
 from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
@@ -78,6 +80,30 @@ MAX_BATCH = 8
 
 
 # ------------------------------------------------------------------------- the client
+def _join_dive(
+    explorer: Explorer,
+    tally: Tally,
+    found: list[Node],
+    unexplored: list[list[int]],
+    early: Dive,
+    keep: int,
+) -> list[Node]:
+    """The dive's statistics, and its leaf among the survivors when it lies under a prefix
+    the cluster left unexplored (as :func:`.search.solve_unknown` does in one process)."""
+    stats = explorer.stats
+    stats.dive_nodes, stats.dive_discrepancies = early.nodes, early.discrepancies
+    leaf = early.leaf
+    if leaf is None or not unexplored:
+        return found
+    decisions = leaf.decisions()
+    if not any(decisions[: len(u)] == u for u in unexplored):
+        return found
+    tally.add(leaf)
+    stats.survivors += 1
+    stats.dive_leaf_added = 1
+    return sorted([*found, leaf], key=lambda n: _rank_key(explorer, n))[:keep]
+
+
 def _epoch(deadline: Budget | None) -> float | None:
     """The wall-clock cap of ``deadline`` as epoch seconds, for tasks on other machines
     (None without one). The work of the tasks is bounded by their quanta, and counted on
@@ -184,7 +210,9 @@ def search_distributed(
     found: list[Node] = []
     split_s = merge_s = 0.0
     slots = max(1, sum(client.nthreads().values()))
+    early = Dive()
     if root is not None:
+        early = dive(explorer, root, SearchLimit(portion(searching, DIVE_SHARE), max_nodes))
         prefixes = run.split(root, SPLIT_PER_SLOT * slots)
         split_s = time.perf_counter() - start
         options = TaskOptions(
@@ -201,6 +229,7 @@ def search_distributed(
         merge_s = time.perf_counter() - merge_start
     stats = explorer.stats
     stats.explored_fraction = min(1.0, run.done)
+    found = _join_dive(explorer, tally, found, run.unexplored(), early, keep)
     if on_unexplored is not None:
         on_unexplored(sorted(run.left))
     finish_start = time.perf_counter()

@@ -39,7 +39,16 @@ __all__ = [
 Prefix = tuple[tuple[int, ...], tuple[int, ...]]
 """A subtree: its root's *position* (index among its siblings at each depth, so that
 positions sort in depth-first order) and its *decisions* (landmark numbers)."""
-_NOT_SUMMED = {"peak_frontier", "explored_fraction", "survivors", "unexplored_subtrees"}
+_NOT_SUMMED = {
+    "peak_frontier",
+    "explored_fraction",
+    "survivors",
+    "unexplored_subtrees",
+    "dive_nodes",
+    "dive_discrepancies",
+    "dive_leaf_added",
+}
+"""Statistics a task does not add to the client's (the dive runs on the client)."""
 
 
 @dataclass(frozen=True)
