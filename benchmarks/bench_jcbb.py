@@ -2,7 +2,8 @@
 
     python benchmarks/bench_jcbb.py                    # the seed's experiment + 5 sparse worlds
     python benchmarks/bench_jcbb.py --quick            # 2 worlds, a smoke run
-    python benchmarks/bench_jcbb.py --seeds 1 2 3 --poses 200 --landmarks 40 --max-range 6
+    python benchmarks/bench_jcbb.py --no-paper --seeds 42 43 44 --poses 200 --landmarks 40 \
+        --max-range 6 --output benchmarks/results/jcbb_200.json
     python benchmarks/bench_jcbb.py --sigma 0.3333 0.5774 --work-budget none
 
 Each world is simulated with unknown correspondence. The baseline
