@@ -34,7 +34,7 @@ MAX_DISCREPANCIES = 2
 
 
 class Dive:
-    """What a dive found and what it cost.
+    """What a dive found and what it cost; it may be resumed where its budget stopped it.
 
     Attributes
     ----------
@@ -50,9 +50,19 @@ class Dive:
         self.leaf: Node | None = None
         self.discrepancies = -1
         self.nodes = 0
+        self._k = 0
+        """Departures allowed in the probe under way."""
+        self._stack: list[tuple[Node, int]] | None = None
+        """The probe's pending nodes, each with the departures it may still take (None:
+        the probe at ``_k`` has not started)."""
+
+    @property
+    def finished(self) -> bool:
+        """True when it found a leaf or tried every probe to its end."""
+        return self.leaf is not None or self._k > MAX_DISCREPANCIES
 
 
-def dive(explorer: Explorer, root: Node, limit: SearchLimit) -> Dive:
+def dive(explorer: Explorer, root: Node, limit: SearchLimit, resume: Dive | None = None) -> Dive:
     """The first leaf of a limited discrepancy search from ``root``, within ``limit``.
 
     The explorer's statistics are left as they were: the exhaustive search that follows
@@ -67,22 +77,27 @@ def dive(explorer: Explorer, root: Node, limit: SearchLimit) -> Dive:
         Where the dive starts.
     limit : SearchLimit
         Its budget; the dive stops with no leaf when it is spent.
+    resume : Dive, optional
+        A dive that a budget stopped, to go on from where it was.
 
     Returns
     -------
     Dive
-        The leaf (or None) and the work done.
+        The leaf (or None) and the work done (``resume`` itself, when given).
     """
     stats = explorer.stats
     saved = asdict(stats)
-    found = Dive()
+    found = Dive() if resume is None else resume
     try:
-        for k in range(MAX_DISCREPANCIES + 1):
-            if _probe(explorer, root, k, limit, found):
-                found.discrepancies = k
+        while not found.finished:
+            if found._stack is None:
+                found._stack = [(root, found._k)]
+            if _probe(explorer, found._stack, limit, found):
+                found.discrepancies = found._k
                 break
             if limit.exhausted(found.nodes) is not None:
-                break
+                break  # the probe's stack stays, for a resume
+            found._k, found._stack = found._k + 1, None
     except KeyboardInterrupt:  # Ctrl-C: the search that follows stops at once too
         if limit.deadline is None:
             raise
@@ -93,12 +108,14 @@ def dive(explorer: Explorer, root: Node, limit: SearchLimit) -> Dive:
     return found
 
 
-def _probe(explorer: Explorer, root: Node, k: int, limit: SearchLimit, found: Dive) -> bool:
-    """Depth first from ``root`` with at most ``k`` departures from the children's order
-    (the first child keeps the count, a later one spends one); True when a leaf is found."""
+def _probe(
+    explorer: Explorer, stack: list[tuple[Node, int]], limit: SearchLimit, found: Dive
+) -> bool:
+    """Depth first from what ``stack`` holds, each node with the departures from the
+    children's order it may still take (the first child keeps the count, a later one
+    spends one); True when a leaf is found (``found.leaf``)."""
     n_decisions = len(explorer.problem.decisions)
     graph = explorer.graph
-    stack: list[tuple[Node, int]] = [(root, k)]
     while stack:
         if limit.exhausted(found.nodes) is not None:
             return False
@@ -115,8 +132,8 @@ def _probe(explorer: Explorer, root: Node, k: int, limit: SearchLimit, found: Di
             limit.deadline,
             COSTS["node"] + COSTS["operator"] * (graph.applications - applications),
         )
-        # a probe at k visits only paths of exactly k departures once k > 0 would be
-        # tighter; paths of fewer departures are cheap to revisit and keep this simple
+        # paths of fewer departures are visited again by the next probe: cheap beside
+        # the exponential number of paths of exactly k, and simpler
         later = [(kid, left - 1) for kid in kids[1:]] if left > 0 else []
         stack.extend(reversed([(kid, left) for kid in kids[:1]] + later))
     return False

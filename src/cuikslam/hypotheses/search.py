@@ -295,6 +295,11 @@ def solve_unknown(
         limit = SearchLimit(portion(deadline, SEARCH_SHARE), max_nodes)
         early = dive(explorer, root, SearchLimit(portion(limit.deadline, DIVE_SHARE), max_nodes))
         outcome = explore(explorer, root, limit, keep, tally.add, progress, reserve=keep)
+        if outcome.stop_reason is not None and not outcome.survivors and not early.finished:
+            # nothing found: the stages after the search have nothing to decide, so the
+            # dive goes on with what they would have had (less a reserve for its leaf)
+            more = SearchLimit(portion(deadline, SEARCH_SHARE), max_nodes)
+            early = dive(explorer, root, more, early)
         _join_dive(explorer, tally, outcome, early, keep)
     unexplored = [n.decisions() for n in outcome.unexplored]
     for node in outcome.unexplored:  # the truth may lie under any of them
