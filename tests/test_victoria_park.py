@@ -217,6 +217,7 @@ def test_cli_import_and_calibrate_synthetic(tmp_path, capsys):
     code = main([
         "calibrate", "victoria-park", str(folder), "-o", str(bounds), "--duration", "20",
         "--window", "10", "--check-duration", "20", "--gps-error", "0.5",
+        "--window-heading", "0.02",
     ])  # fmt: skip
     assert code == 0
     values = read_bounds_file(bounds, "victoria-park", VictoriaParkBounds.names())

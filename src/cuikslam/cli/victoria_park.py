@@ -113,7 +113,17 @@ def add_vp_calibrate_parser(datasets: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--window", type=_positive, default=20.0, help="window [s] (default 20)")
     p.add_argument(
-        "--gps-error", type=_positive, default=2.5, help="GPS error allowed [m] (default 2.5)"
+        "--gps-error",
+        type=_positive,
+        default=2.5,
+        help="GPS error allowed [m] in the windows' check (default 2.5)",
+    )
+    p.add_argument(
+        "--window-heading",
+        type=_positive,
+        default=0.1,
+        help="margin [rad] of each window's first heading around the one fitted to GPS "
+        "(default 0.1)",
     )
     p.add_argument(
         "--quantile",
@@ -132,6 +142,8 @@ def add_vp_calibrate_parser(datasets: argparse._SubParsersAction) -> None:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
     from cuikslam.datasets.calibrate import write_bounds_file
     from cuikslam.datasets.victoria_park_calibrate import (
         calibrate_victoria_park,
@@ -152,11 +164,12 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         window=args.window,
         quantile=args.quantile,
         gps_check=args.gps_error,
+        window_heading=args.window_heading,
     )
     check_start = args.start + args.duration
     checked = check_victoria_park(
         tables,
-        calibration.bounds,
+        replace(calibration.bounds, heading=args.window_heading),
         window_starts(check_start, check_start + args.check_duration, args.window),
         window=args.window,
         keyframe=1.0,

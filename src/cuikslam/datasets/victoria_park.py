@@ -89,18 +89,19 @@ GPS_GAP = 0.5
 class VictoriaParkBounds:
     """Error bounds of the Victoria Park importer (all >= 0; see the module docstring).
 
-    The motion and heading defaults are those ``cuikslam calibrate victoria-park``
-    measured on the first 5 minutes against GPS with a GPS error of 2.5 m
-    (``docs/real-data.md``), rounded up. GPS cannot calibrate the range and bearing bounds
-    (no trunk has a known position): they are stated, and checked only by the consistency
-    of one trunk seen in consecutive scans (:func:`.victoria_park_calibrate.scan_consistency`).
+    The motion defaults are those ``cuikslam calibrate victoria-park`` measured on the
+    first 5 minutes against GPS with a GPS error of 2.5 m (``docs/real-data.md``), rounded
+    outward; the first heading's bound is stated (the car starts in the open). GPS cannot
+    calibrate the range and bearing bounds (no trunk has a known position): they are
+    stated, and checked only by the consistency of one trunk seen in consecutive scans
+    (:func:`.victoria_park_calibrate.scan_consistency`).
     """
 
-    speed_scale_min: float = 0.95
-    speed_scale_max: float = 1.05
-    speed: float = 0.1
+    speed_scale_min: float = 0.976
+    speed_scale_max: float = 1.024
+    speed: float = 0.047
     """[m/s] added to the scaled wheel speed's hull."""
-    steering: float = 0.01
+    steering: float = 0.0047
     """[rad] around the steering readings' hull (a sensor offset included)."""
     range: float = 0.3
     """[m] around the range (stated, not calibrated: GPS cannot see the trunks)."""
