@@ -54,7 +54,17 @@ def _widths(boxes: dict) -> dict:
         return {}
     xy = np.array([max(b[0][1] - b[0][0], b[1][1] - b[1][0]) for b in boxes.values()])
     th = np.array([min(b[2][1] - b[2][0], 2 * np.pi) for b in boxes.values()])
+    ids = sorted(boxes)
+    along = {}
+    for k in (10, 30, 60, 120, 180, 240, ids[-1]):
+        if k in boxes:
+            b = boxes[k]
+            along[str(k)] = [
+                round(max(b[0][1] - b[0][0], b[1][1] - b[1][0]), 2),
+                round(min(b[2][1] - b[2][0], 2 * np.pi), 3),
+            ]
     return {
+        "at_pose_position_heading": along,
         "position_median": float(np.median(xy)),
         "position_max": float(xy.max()),
         "heading_median": float(np.median(th)),

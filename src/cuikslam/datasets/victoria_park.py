@@ -257,8 +257,9 @@ def _first_heading(tables: VictoriaParkTables, t0: float, scale: float) -> float
 
 
 def _keyframes(scan_times: np.ndarray, t0: float, end: float, keyframe: float) -> list[float]:
+    """The poses' times: ``t0``, then the first scan ``keyframe`` after the last pose (or
+    ``keyframe`` after it when no scan comes within two keyframes), up to ``end``."""
     keys = [t0]
-    j = int(np.searchsorted(scan_times, t0, side="left"))
     while True:
         j = int(np.searchsorted(scan_times, keys[-1] + keyframe, side="left"))
         nxt = float(scan_times[j]) if j < scan_times.size else math.inf

@@ -204,16 +204,23 @@ def _nominal_fit(tables: VictoriaParkTables, starts: list[float], window: float)
     p0 = [1.0, 0.0, LASER_A, LASER_B]
     for g, _ in parts:
         chord = g[min(10, len(g) - 1), 1:] - g[0, 1:]
-        p0 += [math.atan2(chord[1], chord[0]), g[0, 1] - LASER_A, g[0, 2]]
+        th0 = math.atan2(chord[1], chord[0])
+        c, si = math.cos(th0), math.sin(th0)
+        p0 += [th0, g[0, 1] - c * LASER_A + si * LASER_B, g[0, 2] - si * LASER_A - c * LASER_B]
     fit = least_squares(residuals, p0, loss="soft_l1", f_scale=0.5, diff_step=1e-4)
-    r = fit.fun
-    n = r.size // 2
+    distances, at = [], 0
+    for g, _ in parts:
+        n = len(g)
+        distances.append(np.hypot(fit.fun[at : at + n], fit.fun[at + n : at + 2 * n]))
+        at += 2 * n
+    d = np.concatenate(distances)
     return {
         "windows": len(parts),
         "speed_scale": float(fit.x[0]),
         "steering_offset": float(fit.x[1]),
         "antenna": [float(fit.x[2]), float(fit.x[3])],
-        "gps_rms_residual": float(math.sqrt(np.mean(r**2) * 2)) if n else math.nan,
+        "gps_residual_median": float(np.median(d)),
+        "gps_residual_p90": float(np.quantile(d, 0.9)),
     }
 
 
