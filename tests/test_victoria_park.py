@@ -256,3 +256,13 @@ def test_real_first_five_minutes_import():
     )
     g = reference.xy[0]
     assert x[0] <= g[0] <= x[1] and y[0] <= g[1] <= y[1]
+
+
+def test_scan_consistency_of_exact_readings(tmp_path):
+    from cuikslam.datasets.victoria_park_calibrate import scan_consistency
+    from cuikslam.datasets.victoria_park_files import read_victoria_park_tables
+
+    tables = read_victoria_park_tables(write_folder(tmp_path / "vp", duration=10.0))
+    found = scan_consistency(tables, 0.0, 10.0)
+    assert found["pairs"] > 20
+    assert found["range_max"] < 0.01 and found["bearing_max"] < 1e-3
