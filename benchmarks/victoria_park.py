@@ -14,7 +14,8 @@ Run::
     cuikslam solve vp.jsonl --consistency hull --json vp.result.json --no-table
     python benchmarks/victoria_park.py vp.jsonl vp.result.json [--gps-error 1 2.5 3]
 
-Prints one JSON object.
+Prints one JSON object. The figures of `docs/real-data.md` are in
+``benchmarks/results/victoria_park.json``.
 """
 
 from __future__ import annotations
