@@ -51,6 +51,9 @@ def add_calibrate_parser(sub: argparse._SubParsersAction) -> None:
     from cuikslam.cli.lost_in_the_woods import add_litw_calibrate_parser
 
     add_litw_calibrate_parser(datasets)
+    from cuikslam.cli.victoria_park import add_vp_calibrate_parser
+
+    add_vp_calibrate_parser(datasets)
     p = datasets.add_parser(
         "check",
         help="count the measurements of a log whose interval misses the truth",

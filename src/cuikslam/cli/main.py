@@ -257,6 +257,9 @@ def build_parser() -> argparse.ArgumentParser:
     from cuikslam.cli.lost_in_the_woods import add_litw_import_parser
 
     add_litw_import_parser(datasets)
+    from cuikslam.cli.victoria_park import add_vp_import_parser
+
+    add_vp_import_parser(datasets)
 
     p = sub.add_parser("plot", help="draw a result JSON", description="Draw the boxes of a result.")
     p.add_argument("result", help="result JSON written by `cuikslam solve --json`")
