@@ -53,13 +53,13 @@ __all__ = [
     "work_budget_for",
 ]
 
-DEFAULT_WORK_BUDGET = 2.5e6
+DEFAULT_WORK_BUDGET = 2.0e6
 """Work units a solve may spend by default (``cuikslam solve --work-budget``), on top of
 ``WORK_PER_POSE`` per pose. Sized so that the seed's experiment with ids dropped is
 decided (both survivors proven, ``lp`` reached) in about the time the former 2 s budget
 took on the 2-core machine of the README's benchmarks; ``benchmarks/bench_budget.py``
 measures the units per second of each stage."""
-WORK_PER_POSE = 1.5e5
+WORK_PER_POSE = 1.0e5
 """Work units per pose of the log added to ``DEFAULT_WORK_BUDGET``: the ``lp`` level's
 sweeps cost about the same per pose, so a long log gets work in proportion (its first
 sweep reaches the end of the log; the result says ``lp (budget)`` when later sweeps were
@@ -194,7 +194,7 @@ def work_budget_for(n_poses: int) -> float:
     """The default work budget of a log of ``n_poses`` poses.
 
     >>> work_budget_for(10)
-    4000000.0
+    3000000.0
     """
     return DEFAULT_WORK_BUDGET + WORK_PER_POSE * n_poses
 
