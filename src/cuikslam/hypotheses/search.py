@@ -443,7 +443,6 @@ def finish_search(
         )
     stats.operator_applications += explorer.graph.applications
     statistics = {key: float(v) if isinstance(v, float) else v for key, v in asdict(stats).items()}
-    ambiguity_lp_s = statistics.pop("ambiguity_lp_seconds")  # a timing, not a count
     statistics.update(
         poses=len(problem.pose_x),
         observations=problem.n_observations,
@@ -461,7 +460,7 @@ def finish_search(
         statistics=statistics,
         timings={
             "solve_s": time.perf_counter() - start,
-            "ambiguity_lp_s": ambiguity_lp_s,
+            "ambiguity_lp_s": explorer.ambiguity_lp_s,
             **ranked.timings,
         },
         log_path=log.path,

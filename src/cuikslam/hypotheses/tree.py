@@ -72,8 +72,6 @@ class SearchStatistics:
     operator_applications: int = 0
     ambiguity_lp: int = 0
     """Nodes about to branch that were narrowed to the ``lp`` level first."""
-    ambiguity_lp_seconds: float = 0.0
-    """Time those narrowings took."""
     outlier_options: int = 0
     """Children that take their observation as an outlier (an ``outliers`` declaration)."""
     dive_nodes: int = 0
