@@ -272,9 +272,12 @@ class SharedGraph:
         return Overlay(idx, lo[idx], hi[idx], rows)
 
     def _base_widths(self) -> tuple[int, float]:
-        widths = self.base_hi[self._ranked] - self.base_lo[self._ranked]
-        finite = np.isfinite(widths)
-        return int(np.count_nonzero(~finite)), float(np.sum(widths[finite]))
+        """(infinite widths, sum of the finite ones) over the ranked variables of the base;
+        the sum of huge widths (1e307 m) may overflow to inf, which only ties the rank."""
+        with np.errstate(over="ignore"):
+            widths = self.base_hi[self._ranked] - self.base_lo[self._ranked]
+            finite = np.isfinite(widths)
+            return int(np.count_nonzero(~finite)), float(np.sum(widths[finite]))
 
     def size_key(self, overlay: Overlay, extra: np.ndarray) -> tuple[int, float]:
         """(infinite widths, sum of finite widths) over the ranked variables and ``extra``.

@@ -325,10 +325,11 @@ def _branch(
 
 
 def _width(lo: np.ndarray, hi: np.ndarray) -> float:
-    """The sum of the finite widths (a measure of progress, not of soundness)."""
-    with np.errstate(invalid="ignore"):  # inf - inf: not finite, left out below
+    """The sum of the finite widths (a measure of progress, not of soundness; huge widths
+    may sum to inf, which then reads as no progress)."""
+    with np.errstate(invalid="ignore", over="ignore"):  # inf - inf: not finite, left out
         widths = hi - lo
-    return float(widths[np.isfinite(widths)].sum())
+        return float(widths[np.isfinite(widths)].sum())
 
 
 def _fixpoint(
