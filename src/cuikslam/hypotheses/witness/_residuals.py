@@ -79,7 +79,7 @@ class Residuals:
         P, L = self.pose_boxes(poses_box), self.landmark_boxes(landmarks_box)
         if P is None or L is None:
             return
-        with np.errstate(invalid="ignore"):
+        with np.errstate(invalid="ignore", over="ignore"):  # gaps of 1e308 m: inf, far
             gap_x = np.maximum(
                 L[None, :, 0, 0] - P[:, None, 0, 1], P[:, None, 0, 0] - L[None, :, 0, 1]
             )

@@ -214,7 +214,8 @@ class Starts:
             try:
                 from scipy.optimize import least_squares  # loaded when a witness is sought
 
-                fit = least_squares(residuals, xy, method="trf", max_nfev=50)
+                with np.errstate(all="ignore"):  # huge magnitudes: overflow, no warning
+                    fit = least_squares(residuals, xy, method="trf", max_nfev=50)
             except ValueError:
                 continue
             if fit.cost < best_cost and np.all(np.isfinite(fit.x)):

@@ -193,12 +193,13 @@ def _least_squares(
         return bounded_least_squares(both, z0, bounds[0], bounds[1], max_nfev, tol)
     from scipy.optimize import least_squares  # loaded when a witness is sought
 
-    result = least_squares(
-        lambda z: both(z)[0], z0, jac=lambda z: both(z)[1],
-        bounds=bounds,
-        method="trf", xtol=tol, ftol=tol, gtol=tol, max_nfev=max_nfev,
-        tr_solver=tr_solver,
-    )  # fmt: skip
+    with np.errstate(all="ignore"):  # huge magnitudes overflow its steps: no witness, no warning
+        result = least_squares(
+            lambda z: both(z)[0], z0, jac=lambda z: both(z)[1],
+            bounds=bounds,
+            method="trf", xtol=tol, ftol=tol, gtol=tol, max_nfev=max_nfev,
+            tr_solver=tr_solver,
+        )  # fmt: skip
     return result.x
 
 
