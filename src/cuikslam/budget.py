@@ -72,13 +72,17 @@ COSTS = {
     "evaluation": 100.0,
     "start": 1000.0,
     "bisection_part": 50.0,
+    "lp_flop": 2.0e-4,
 }
 """Work units of one unit of work of each stage: a narrowing operator applied once; each
 row and column of an LP solved (an LP of r rows and c columns costs ``(r + c) *
 lp_entry``); a search node expanded (beside its propagation's operators); one residual
 of a least-squares evaluation (witness search and fit), and the fixed cost of an
 evaluation and of a start of the witness search; a part of a bisection narrowed (beside
-its operators). Measured so that a unit is about a microsecond of this machine in
+its operators); a multiply-add of the dense LP kernel (:mod:`cuikslam.narrowing._simplex`:
+its inverse of the active constraints, ``2 n**3``, and each pivot's update, ``2 n**2``
+plus the matrix's entries, for n columns), whose cost grows faster than its LP's size on
+the windows of a long log. Measured so that a unit is about a microsecond of this machine in
 each stage (``benchmarks/bench_budget.py``); what matters is only that each is a fixed
 count of the same work on every machine."""
 STRENGTHEN_SHARE = 0.7

@@ -126,7 +126,7 @@ def _probe(
                 return True
             continue
         applications = graph.applications
-        kids, _ = explorer.children(node)
+        kids, _ = explorer.children(node, narrow=False)
         found.nodes += 1
         spend(
             limit.deadline,

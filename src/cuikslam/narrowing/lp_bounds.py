@@ -419,9 +419,7 @@ def _sequence(
                     n,
                 )
                 if state is not None:
-                    inverse = _simplex.inverse_of_active(
-                        state[0], csr.indptr, csr.indices, csr.data, n
-                    )
+                    inverse = _inverse(state[0], csr, n, deadline)
                     state = None if inverse is None else state
             else:
                 stats.limit_hits += status in _LIMITS
@@ -431,7 +429,7 @@ def _sequence(
             continue
         ids, side = state
         stop = min(len(order), q + KERNEL_CHUNK)
-        code, at, _ = _simplex.solve_sequence(
+        code, at, pivots = _simplex.solve_sequence(
             csr.indptr, csr.indices, csr.data, lower, upper, ids, side, inverse, order,
             senses, q, stop, KERNEL_ITERATIONS, duals,
         )  # fmt: skip
@@ -443,9 +441,10 @@ def _sequence(
         stats.solved += at - q
         stats.optimal += at - q
         spend(deadline, (at - q) * size * COSTS["lp_entry"])
+        spend(deadline, (pivots + 1) * (2 * n * n + csr.nnz) * COSTS["lp_flop"])
         q = at
         if code == _simplex.REFACTOR:
-            inverse = _simplex.inverse_of_active(ids, csr.indptr, csr.indices, csr.data, n)
+            inverse = _inverse(ids, csr, n, deadline)
             state = None if inverse is None else state
         elif code == _simplex.FAILED:
             state = None  # HiGHS takes LP q, from the kernel's last vertex
@@ -457,6 +456,15 @@ def _sequence(
     bounds[senses < 0] = -bounds[senses < 0]
     k = len(columns)
     return bounds[:k].tolist(), bounds[k:].tolist(), stats
+
+
+def _inverse(
+    ids: np.ndarray, csr: sparse.csr_matrix, n: int, deadline: Budget | None
+) -> np.ndarray | None:
+    """The dense kernel's inverse of the active constraints ``ids`` (None when singular),
+    its work spent."""
+    spend(deadline, 2 * n**3 * COSTS["lp_flop"])
+    return _simplex.inverse_of_active(ids, csr.indptr, csr.indices, csr.data, n)
 
 
 def _run(solver: highspy.Highs, deadline: Budget | None, stats: LpStatistics, size: int) -> object:
