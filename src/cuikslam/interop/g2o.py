@@ -21,7 +21,10 @@ as standard deviations by default; information = inverse covariance). Pose ``p``
 id as vertex id; the ``j``-th landmark is vertex ``max pose id + 1 + j`` (the header says
 which). A range-only reading has no ``slam2d`` edge and is left out, as is what g2o has no
 counterpart for (sensor model, class priors, outlier declarations, observations taken as
-outliers); a ``#`` comment says so. g2o skips lines it does not know, comments included.
+outliers). ``#`` comments at the end of the file say where the vertices come from, which
+vertex each landmark is, and what was left out: g2o skips comments and lines it does not
+know, and GTSAM's ``readG2o`` stops reading edges at the first comment, so none comes
+before the last edge.
 """
 
 from __future__ import annotations
@@ -101,7 +104,7 @@ def g2o_lines(
         Standard deviation per half-width and its least value
         (:mod:`cuikslam.interop.gaussian`).
     comments : sequence of str
-        More ``#`` lines for the header.
+        More ``#`` lines for the notes at the end.
 
     Raises
     ------
@@ -121,12 +124,13 @@ def g2o_lines(
     wanted = {m for m in assignment if m != OUTLIER} | {r.landmark for r in log.landmark_priors}
     if not wanted <= vertex.keys():
         raise ValueError(f"no value for landmark(s) {sorted(wanted - vertex.keys())[:5]}")
-    lines = [
-        f"# cuikslam graph: vertices from the {point.source}",
-        f"# landmarks are vertices {first}..{first + len(vertex) - 1}: "
+    notes = [
+        f"cuikslam graph: vertices from the {point.source}",
+        f"landmarks are vertices {first}..{first + len(vertex) - 1}: "
         + ", ".join(f"{m}={v}" for m, v in vertex.items()),
-        *(f"# {c}" for c in comments),
+        *comments,
     ]
+    lines = []
     for pose_id, xyt in sorted(zip(point.pose_ids, point.poses_xyt.tolist(), strict=True)):
         lines.append(f"VERTEX_SE2 {pose_id} {_numbers(np.asarray(xyt))}")
     for m, xy in zip(point.landmark_ids, point.landmarks_xy, strict=True):
@@ -165,12 +169,15 @@ def g2o_lines(
                 )
             elif reading.kind == "bearing":
                 information = 1.0 / reading.covariance[0, 0]
-                lines.append(f"EDGE_BEARING_SE2_XY {ids} {reading.mean[0]!r} {information!r}")
+                lines.append(
+                    f"EDGE_BEARING_SE2_XY {ids} {float(reading.mean[0])!r} {float(information)!r}"
+                )
             else:
                 left_out.append(f"range-only observation at pose {r.pose} of {landmark}")
         elif isinstance(r, SensorModel | ClassPrior | OutlierBound):
             left_out.append(f"{type(r).__name__} record (no g2o counterpart)")
-    return lines + [f"# left out: {what}" for what in left_out]
+    notes += [f"left out: {what}" for what in left_out]
+    return lines + [f"# {note}" for note in notes]
 
 
 def write_g2o_file(

