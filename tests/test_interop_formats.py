@@ -6,6 +6,7 @@ reads them the right way round is in ``test_interop_gtsam.py``.
 
 from __future__ import annotations
 
+import importlib
 import math
 import shutil
 import subprocess
@@ -95,6 +96,13 @@ def test_a_one_sided_reading_with_an_offset_is_refused() -> None:
     record = Observation(1, "door", None, (0.1, 0.2), offset=((0.1, 0.1), (0.0, 0.0), (0, 0)))
     with pytest.raises(ValueError, match="bearing-only reading with a sensor offset"):
         reading_gaussian(record)
+
+
+def test_without_gtsam_the_gtsam_module_says_what_to_install(monkeypatch) -> None:
+    monkeypatch.setitem(sys.modules, "gtsam", None)  # as if it were not installed
+    monkeypatch.delitem(sys.modules, "cuikslam.interop.gtsam", raising=False)
+    with pytest.raises(ImportError, match=r'pip install "cuikslam\[interop\]"'):
+        importlib.import_module("cuikslam.interop.gtsam")
 
 
 # --------------------------------------------------------------------------- TUM

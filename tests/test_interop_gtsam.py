@@ -6,8 +6,10 @@ truth and its optimum there: a factor read with a wrong sign, frame or unit woul
 
 from __future__ import annotations
 
+import doctest
 import math
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -167,3 +169,14 @@ def test_readg2o_reads_the_g2o_export(solved, tmp_path) -> None:
     assert initial.size() == 6  # 4 poses, 2 landmarks
     between = [graph.at(i) for i in range(graph.size())]
     assert sum(type(f).__name__ == "BetweenFactorPose2" for f in between) == 4
+
+
+def test_the_examples_of_docs_interop_run() -> None:
+    """Every ``>>>`` example of docs/interop.md (the seed's experiment, known and unknown
+    correspondence: build, optimise, check) prints what the page says."""
+    page = Path(__file__).resolve().parents[1] / "docs" / "interop.md"
+    result = doctest.testfile(
+        str(page), module_relative=False, optionflags=doctest.ELLIPSIS, verbose=False
+    )
+    assert result.attempted >= 15
+    assert result.failed == 0
