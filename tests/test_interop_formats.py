@@ -265,3 +265,15 @@ def test_export_g2o_of_a_result_of_another_log(files: Path, tmp_path: Path) -> N
     )  # fmt: skip
     assert_input_error(result, "does not fit the log other.jsonl", "observations assigned")
     assert not (tmp_path / "x.g2o").exists()
+
+
+def test_export_loads_no_heavy_package(files: Path, tmp_path: Path) -> None:
+    from test_startup import loaded_after
+
+    out = tmp_path / "graph.g2o"
+    code = (
+        "from cuikslam.cli.main import main\n"
+        f"main(['export', {str(files / 'result.json')!r}, '--format', 'g2o', '-o', {str(out)!r}])"
+    )
+    assert loaded_after(code) == []
+    assert out.is_file()

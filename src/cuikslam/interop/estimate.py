@@ -21,6 +21,8 @@ from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
+from cuikslam.interval.midpoints import midpoint
+
 if TYPE_CHECKING:
     from cuikslam.results.solution import Hypothesis
     from cuikslam.simulate.truth import GroundTruth
@@ -85,8 +87,7 @@ class PointEstimate:
 def _centres(boxes: np.ndarray) -> np.ndarray:
     """Box centres; an unbounded side gives way to the bounded one, and 0 when both are."""
     lo, hi = boxes[..., 0], boxes[..., 1]
-    with np.errstate(over="ignore", invalid="ignore"):
-        centre = lo / 2 + hi / 2
+    centre = midpoint(lo, hi)
     centre = np.where(np.isfinite(lo) & ~np.isfinite(hi), lo, centre)
     centre = np.where(np.isfinite(hi) & ~np.isfinite(lo), hi, centre)
     return np.where(np.isfinite(centre), centre, 0.0)

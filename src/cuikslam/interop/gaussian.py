@@ -29,6 +29,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cuikslam.interval.midpoints import half_width
+from cuikslam.interval.midpoints import midpoint as _midpoint
 from cuikslam.log.records import (
     Bounds,
     LandmarkPrior,
@@ -54,15 +56,15 @@ MIN_SIGMA = 1e-6
 
 
 def midpoint(bounds: Bounds) -> float:
-    """The centre of ``bounds`` (without overflow for huge ones).
+    """The centre of ``bounds`` (:func:`cuikslam.interval.midpoints.midpoint`, for one
+    interval of a log record).
 
     Examples
     --------
     >>> midpoint((1.0, 2.0)), midpoint((-1e308, 1e308))
     (1.5, 0.0)
     """
-    lo, hi = float(bounds[0]), float(bounds[1])
-    return lo + (hi - lo) / 2 if math.isfinite(hi - lo) else lo / 2 + hi / 2
+    return float(_midpoint(bounds[0], bounds[1]))
 
 
 def sigma(bounds: Bounds, scale: float = 1.0, floor: float = MIN_SIGMA) -> float:
@@ -73,8 +75,7 @@ def sigma(bounds: Bounds, scale: float = 1.0, floor: float = MIN_SIGMA) -> float
     >>> sigma((0.9, 1.1)), sigma((0.9, 1.1), scale=1 / 2), sigma((3.0, 3.0))
     (0.10000000000000003, 0.05000000000000002, 1e-06)
     """
-    half = float(bounds[1]) / 2 - float(bounds[0]) / 2
-    return max(scale * half, floor)
+    return max(scale * float(half_width(bounds[0], bounds[1])), floor)
 
 
 @dataclass(frozen=True)
