@@ -1,10 +1,10 @@
 """Log records read as Gaussians: what a least-squares back end (GTSAM, g2o) is given.
 
 A bounded-error reading ``[lo, hi]`` becomes a Gaussian centred on its midpoint with a
-standard deviation of ``scale`` half-widths (``scale=1``: the half-width itself, as
-issue 30 asks; 1/3 reads the interval as a 3-sigma bound; 1/sqrt(3) is the standard
-deviation of an error uniform over the interval), and at least ``floor`` (an exact
-reading would otherwise be an infinitely stiff factor).
+standard deviation of ``scale`` half-widths (``scale=1``: the half-width itself; 1/3 reads
+the interval as a 3-sigma bound; 1/sqrt(3) is the standard deviation of an error uniform
+over the interval), and at least ``floor`` (an exact reading would otherwise be an
+infinitely stiff factor).
 
 Moves are expressed as GTSAM's ``BetweenFactorPose2`` and g2o's ``EDGE_SE2`` read them: the
 mean relative pose of the target in the source frame, and a covariance in the tangent
