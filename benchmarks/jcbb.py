@@ -12,8 +12,10 @@ distance). Readings left unpaired open new landmarks.
 
 Noise model: the log's intervals are read as Gaussians centred on their midpoints with a
 standard deviation of a third of their half-width (a 3-sigma bound); exact values get
-1e-3. The sensor's negative information and class priors of the log are not used (GTSAM
-has no counterpart). Readings need both a range and a bearing and no sensor offset.
+1e-3. The factors are the library's (:mod:`cuikslam.interop.gtsam`, the same as
+``cuikslam.interop.gtsam.factor_graph`` builds). The sensor's negative information and
+class priors of the log are not used (GTSAM has no counterpart). Readings need both a
+range and a bearing.
 """
 
 from __future__ import annotations
@@ -25,6 +27,9 @@ import gtsam
 import numpy as np
 from scipy.stats import chi2
 
+from cuikslam.interop.estimate import landmark_key, pose_key
+from cuikslam.interop.gaussian import midpoint, move_gaussian, reading_gaussian
+from cuikslam.interop.gtsam import move_factor, observation_factor, pose_prior_factor
 from cuikslam.log.records import Log, Observation, Odometry, PosePrior, RelativePose
 
 __all__ = ["GATE", "SIGMA_FRACTION", "JcbbResult", "Reading", "jcbb", "run_gtsam_jcbb"]
@@ -37,15 +42,6 @@ _FLOOR = 1e-3  # standard deviation given to an exact value
 
 SIGMA_FRACTION = 1 / 3
 """Standard deviation per half-width of an interval (a 3-sigma bound)."""
-
-
-def _sigma(bounds: tuple[float, float], fraction: float = SIGMA_FRACTION) -> float:
-    """``fraction`` of the half-width, at least ``_FLOOR``."""
-    return max(0.5 * (bounds[1] - bounds[0]) * fraction, _FLOOR)
-
-
-def _mid(bounds: tuple[float, float]) -> float:
-    return 0.5 * (bounds[0] + bounds[1])
 
 
 def _wrap(angle: float) -> float:
@@ -152,14 +148,6 @@ class JcbbResult:
     landmarks: dict[str, np.ndarray] = field(default_factory=dict)
 
 
-def _x(pose: int) -> int:
-    return gtsam.symbol("x", pose)
-
-
-def _l(index: int) -> int:
-    return gtsam.symbol("l", index)
-
-
 class _Slam:
     """The iSAM2 pose graph, grown record by record."""
 
@@ -178,8 +166,8 @@ class _Slam:
         self.full.add(factor)
 
     def new_pose(self, pose: int, value: np.ndarray) -> None:
-        self.values.insert(_x(pose), gtsam.Pose2(*value))
-        self.guess[_x(pose)] = value
+        self.values.insert(pose_key(pose), gtsam.Pose2(*value))
+        self.guess[pose_key(pose)] = value
 
     def update(self) -> None:
         if self.pending.size() or self.values.size():
@@ -193,32 +181,29 @@ class _Slam:
                 else:
                     self.guess[key] = np.asarray(est.atPoint2(key))
 
-    def relative(self, source: int, target: int, delta: np.ndarray, cov: np.ndarray) -> None:
-        noise = gtsam.noiseModel.Gaussian.Covariance(cov + _FLOOR**2 * np.eye(3))
-        self.add(gtsam.BetweenFactorPose2(_x(source), _x(target), gtsam.Pose2(*delta), noise))
-        if _x(target) not in self.guess:
-            start = gtsam.Pose2(*self.guess[_x(source)])
-            end = start.compose(gtsam.Pose2(*delta))
-            self.new_pose(target, np.array([end.x(), end.y(), end.theta()]))
+    def relative(self, record: Odometry | RelativePose) -> None:
+        self.add(move_factor(record, self.fraction, _FLOOR))
+        if pose_key(record.target) not in self.guess:
+            start = gtsam.Pose2(*self.guess[pose_key(record.source)])
+            end = start.compose(gtsam.Pose2(*move_gaussian(record, self.fraction, _FLOOR).mean))
+            self.new_pose(record.target, np.array([end.x(), end.y(), end.theta()]))
 
     def scan(self, pose: int, observations: list[Observation]) -> list[str]:
         """Associate one scan by JCBB, add its factors; the landmark id of each reading."""
         self.update()
         readings = []
         for o in observations:
-            if o.range is None or o.bearing is None or o.offset is not None:
-                raise ValueError("the GTSAM baseline needs range and bearing, without offset")
-            z = np.array([_mid(o.bearing), _mid(o.range)])
-            f = self.fraction
-            cov = np.diag([_sigma(o.bearing, f) ** 2, _sigma(o.range, f) ** 2])
-            readings.append(Reading(z, cov, o.landmark_class))
+            reading = reading_gaussian(o, self.fraction, _FLOOR)
+            if reading.kind != "bearing-range":
+                raise ValueError("the GTSAM baseline needs both a range and a bearing")
+            readings.append(Reading(reading.mean, reading.covariance, o.landmark_class))
         wanted = {o.landmark_class for o in observations}
         candidates = [lm for lm, c in self.classes.items() if c in wanted]
         labels: list[str | None] = [o.landmark for o in observations]
         free = [i for i, lab in enumerate(labels) if lab is None]
-        pose_xyt = self.guess[_x(pose)]
+        pose_xyt = self.guess[pose_key(pose)]
         if free and candidates:
-            keys = [_x(pose)] + [self.keys[lm] for lm in candidates]
+            keys = [pose_key(pose)] + [self.keys[lm] for lm in candidates]
             joint = gtsam.Marginals(self.full, self.isam.calculateEstimate())
             cov = joint.jointMarginalCovariance(gtsam.KeyVector(keys)).fullMatrix()
             points = [self.guess[self.keys[lm]] for lm in candidates]
@@ -238,22 +223,13 @@ class _Slam:
                 labels[i] = f"J{len(self.keys)}"
             lm = labels[i]
             if lm not in self.keys:
-                key = _l(len(self.keys))
+                key = landmark_key(len(self.keys))
                 self.keys[lm], self.classes[lm] = key, o.landmark_class
                 b, r = pose_xyt[2] + readings[i].z[0], readings[i].z[1]
                 point = pose_xyt[:2] + r * np.array([math.cos(b), math.sin(b)])
                 self.values.insert(key, gtsam.Point2(*point))
                 self.guess[key] = point
-            noise = gtsam.noiseModel.Gaussian.Covariance(readings[i].cov)
-            self.add(
-                gtsam.BearingRangeFactor2D(
-                    _x(pose),
-                    self.keys[lm],
-                    gtsam.Rot2.fromAngle(readings[i].z[0]),
-                    float(readings[i].z[1]),
-                    noise,
-                )
-            )
+            self.add(observation_factor(o, self.keys[lm], self.fraction, _FLOOR))
         return [str(lab) for lab in labels]
 
 
@@ -280,23 +256,11 @@ def run_gtsam_jcbb(log: Log, fraction: float = SIGMA_FRACTION) -> JcbbResult:
             continue
         flush()
         if isinstance(r, PosePrior):
-            value = np.array([_mid(r.x), _mid(r.y), _mid(r.theta)])
-            sigmas = np.array([_sigma(r.x, f), _sigma(r.y, f), _sigma(r.theta, f)])
-            noise = gtsam.noiseModel.Diagonal.Sigmas(sigmas)
-            slam.add(gtsam.PriorFactorPose2(_x(r.pose), gtsam.Pose2(*value), noise))
-            if _x(r.pose) not in slam.guess:
-                slam.new_pose(r.pose, value)
-        elif isinstance(r, Odometry):
-            t, d = _mid(r.turn), _mid(r.distance)
-            # local tangent of the move: (d, t) -> (dx, dy, dtheta) = (δd, d δt, δt)
-            jac = np.array([[1.0, 0.0], [0.0, d], [0.0, 1.0]])
-            cov = jac @ np.diag([_sigma(r.distance, f) ** 2, _sigma(r.turn, f) ** 2]) @ jac.T
-            delta = np.array([d * math.cos(t), d * math.sin(t), t])
-            slam.relative(r.source, r.target, delta, cov)
-        elif isinstance(r, RelativePose):
-            delta = np.array([_mid(r.dx), _mid(r.dy), _mid(r.dtheta)])
-            cov = np.diag([_sigma(r.dx, f) ** 2, _sigma(r.dy, f) ** 2, _sigma(r.dtheta, f) ** 2])
-            slam.relative(r.source, r.target, delta, cov)
+            slam.add(pose_prior_factor(r, f, _FLOOR))
+            if pose_key(r.pose) not in slam.guess:
+                slam.new_pose(r.pose, np.array([midpoint(b) for b in (r.x, r.y, r.theta)]))
+        elif isinstance(r, Odometry | RelativePose):
+            slam.relative(r)
     flush()
     slam.update()
     est = slam.isam.calculateEstimate()

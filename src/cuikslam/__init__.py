@@ -63,6 +63,7 @@ _HOMES: dict[str, str] = {
     "Solution": "cuikslam.results.solution",
     "Hypothesis": "cuikslam.results.solution",
     "check_truth": "cuikslam.results.solution",
+    "check_estimate": "cuikslam.interop.check",
     "read_result_file": "cuikslam.results.io",
     "write_result_file": "cuikslam.results.io",
     "summarize": "cuikslam.results.summary",

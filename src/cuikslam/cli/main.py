@@ -291,9 +291,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_evaluate)
 
     from cuikslam.cli.calibrate import add_calibrate_parser
+    from cuikslam.cli.export import add_export_parser
     from cuikslam.cli.warm_up import add_warm_up_parser
 
     add_calibrate_parser(sub)
+    add_export_parser(sub)
     add_warm_up_parser(sub)
     return parser
 

@@ -13,35 +13,13 @@ import math
 
 import numpy as np
 
+from cuikslam.interval.midpoints import half_width, midpoint
+
+__all__ = ["BIG", "cos_sin", "finite", "half_width", "midpoint", "uniform", "wrap_near"]
+
 BIG = 1e100
 """Residuals and Jacobian entries are clipped to this magnitude (their squares, summed
 over thousands of rows, stay finite)."""
-
-
-def midpoint(lo: np.ndarray, hi: np.ndarray, default: float = np.nan) -> np.ndarray:
-    """The midpoint of each interval ``[lo, hi]``, inside it, without overflow.
-
-    ``default`` where a bound is not finite. ``(lo + hi) / 2`` overflows for huge bounds,
-    and ``lo / 2 + hi / 2`` can fall outside a subnormal interval; this does neither.
-    """
-    lo = np.asarray(lo, dtype=float)
-    hi = np.asarray(hi, dtype=float)
-    finite = np.isfinite(lo) & np.isfinite(hi)
-    with np.errstate(over="ignore", invalid="ignore"):
-        width = hi - lo
-        mid = np.where(np.isfinite(width), lo + width / 2.0, lo / 2.0 + hi / 2.0)
-        mid = np.minimum(np.maximum(mid, lo), hi)
-    return np.where(finite, mid + 0.0, default)
-
-
-def half_width(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """Half the width of each interval, without overflow (inf for an unbounded interval)."""
-    lo = np.asarray(lo, dtype=float)
-    hi = np.asarray(hi, dtype=float)
-    with np.errstate(over="ignore", invalid="ignore"):
-        width = hi - lo
-        half = np.where(np.isfinite(width), width / 2.0, hi / 2.0 - lo / 2.0)
-    return np.maximum(half, 0.0) + 0.0
 
 
 def uniform(rng: np.random.Generator, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
