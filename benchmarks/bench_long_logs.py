@@ -13,7 +13,7 @@ Each run reports the seconds of the narrowing beyond the fixpoint (``lp_s``: the
 the part that grows with the log) and of the whole solve, per pose; the median and widest
 pose box per coordinate; the LPs solved; and the peak resident memory of the process per
 pose. Runs are *warm*: the process has loaded numba's compiled kernels before the clock
-starts (a first run after installing compiles them once, see the README).
+starts (a first run after installing compiles them once, see docs/benchmarks.md).
 
 ``--baseline DIR`` runs the same worker with another checkout's ``src`` first on the
 Python path (e.g. ``git archive <commit> src | tar -x -C DIR``), to compare with the

@@ -1,4 +1,4 @@
-"""Figure for the README: the seed's experiment boxes at each consistency level and the inner hull.
+"""Figure of docs/concepts/levels.md: the seed's experiment, boxes at each level and the inner hull.
 
     python benchmarks/figure_consistency.py [--seed 0] [-o docs/consistency.png]
 

@@ -199,6 +199,8 @@ def test_a_spent_budget_is_reported_not_hidden() -> None:
     assert spent.statistics["budget_bound"] == "work"
     assert any("budget ran out" in m for m in spent.messages)
     assert any("witness search stopped" in m for m in spent.messages)
+    # in words for both a command-line and a Python user: no flag, no keyword argument
+    assert not any("--" in m or "budget=" in m for m in spent.messages), spent.messages
     assert check_truth(spent.best, truth.pose_ids, truth.poses_xyt).ok
     unlimited = solve(log, consistency="lp", work_budget=None)
     assert unlimited.consistency == "lp" and unlimited.best.status == PROVEN

@@ -289,3 +289,14 @@ def test_truth_file_with_a_pose_id_twice_is_refused(tmp_path: Path) -> None:
     del doc["poses"]["07"]
     path.write_text(json.dumps(doc), encoding="utf-8")
     assert read_truth_file(path).pose_ids == list(range(3000))
+
+
+def test_a_long_message_stays_one_line_when_piped(capsys) -> None:
+    """Piped or written to a file, a message longer than the console's width is printed
+    whole on one line (a reader's pager wraps it), while tables keep their width."""
+    from cuikslam.cli.commands import console
+
+    message = "the search stopped " + "and went on " * 40 + "until the end"
+    out = console()
+    out.print(message, highlight=False, markup=False)
+    assert capsys.readouterr().out == message + "\n"

@@ -365,3 +365,22 @@ def test_a_fitting_truth_with_or_without_assignment_is_evaluated(
         result, truth_path = _write(tmp_path, solution, _truth_doc({"0": [0, 0, 0]}, assignment))
         assert main(["evaluate", result, "--truth", truth_path, "-q"]) == 0
         assert capsys.readouterr().err == ""
+
+
+def test_evaluate_and_the_solve_overview_print_one_median() -> None:
+    """An even number of poses: `cuikslam evaluate` and `cuikslam solve` (the overview) take
+    the same median of the widths (the mean of the two middle ones), not two."""
+    from cuikslam.results.overview import box_statistics
+
+    h = _hypothesis(["A"], ["A"])
+    h.poses = np.concatenate([h.poses, [[[3.0, 3.9], [-0.5, 0.5], [-0.4, 0.4]]]])
+    h.pose_ids = [0, 1, 2, 3]
+    truth_doc = _truth_doc(
+        {"0": [0, 0, 0], "1": [1, 0, 0], "2": [2, 0, 0], "3": [3.5, 0, 0]}, ["A"]
+    )
+    from cuikslam.simulate.truth import _truth_from_json
+
+    widths = evaluate(Solution([h]), _truth_from_json(truth_doc)).widths()
+    overview = box_statistics(h.poses, h.pose_ids, ("x", "y", "θ"))
+    assert [widths[k].median for k in ("x", "y", "theta")] == overview.median.tolist()
+    assert widths["x"].median == pytest.approx((0.3 + 0.6) / 2)  # widths 0.2, 0.3, 0.6, 0.9

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
@@ -242,6 +243,25 @@ def test_a_node_budget_stops_the_search_with_an_account() -> None:
     assert sorted(map(partition, seen)) == sorted(
         partition(h.assignment) for h in streamed.hypotheses
     )
+
+
+def test_an_incomplete_search_names_log_lines_where_its_subtrees_branch(tmp_path) -> None:
+    """The message of a budget stop says where the unexplored subtrees branch in words a
+    user can follow (log lines and poses), not as the search's decision vectors."""
+    from cuikslam.log import read_log_file, write_log_file
+
+    log, _ = simulate_paper(seed=0, unknown=True)
+    write_log_file(log, tmp_path / "doors.jsonl")
+    read = read_log_file(tmp_path / "doors.jsonl")
+    solution = solve_unknown(read, consistency="hull", max_nodes=50, local_frame=False)
+    (message,) = (m for m in solution.messages if "INCOMPLETE" in m)
+    places = message.split("try other landmarks for the observations at ")[1].split(", ")
+    lines = {r.line: r for r in read.records}
+    for place in places:
+        line, pose = (int(n) for n in re.fullmatch(r"line (\d+) \(pose (\d+)\)", place).groups())
+        assert isinstance(lines[line], Observation) and lines[line].landmark is None
+        assert lines[line].pose == pose
+    assert "more ..." not in message and "(depth" not in message
 
 
 def test_negative_information_refutes_a_duplicate_landmark() -> None:

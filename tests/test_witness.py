@@ -187,7 +187,7 @@ def test_proven_hypotheses_rank_before_undecided_ones() -> None:
     certify(log, solution, restarts=2)
     assert [h.status for h in solution.hypotheses] == [PROVEN, NOT_REFUTED]
     assert solution.hypotheses[0] is right and solution.hypotheses[1] is wrong
-    assert solution.messages[-1].endswith("undecided (not refuted, not proven): 2")
+    assert solution.messages[-1].endswith("undecided (not refuted, not proven): rank 2")
     assert [h.rank_key for h in solution.hypotheses] == sorted(h.rank_key for h in [wrong, right])
 
 

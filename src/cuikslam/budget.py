@@ -57,7 +57,7 @@ DEFAULT_WORK_BUDGET = 2.0e6
 """Work units a solve may spend by default (``cuikslam solve --work-budget``), on top of
 ``WORK_PER_POSE`` per pose. Sized so that the seed's experiment with ids dropped is
 decided (both survivors proven, ``lp`` reached) in about the time the former 2 s budget
-took on the 2-core machine of the README's benchmarks; ``benchmarks/bench_budget.py``
+took on the 2-core machine of ``docs/benchmarks.md``; ``benchmarks/bench_budget.py``
 measures the units per second of each stage."""
 WORK_PER_POSE = 1.0e5
 """Work units per pose of the log added to ``DEFAULT_WORK_BUDGET``: the ``lp`` level's

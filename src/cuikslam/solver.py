@@ -349,6 +349,6 @@ def budget_message(level: str, report: StrengthenReport) -> str:
     return (
         f"the budget ran out during the '{level}' level: the boxes reach level "
         f"'{report.level}' ({report.lp_rounds} polytope round(s), {report.lp.solved} LPs); "
-        "they are sound, only wider than the full level would make them (raise "
-        "--work-budget, or work_budget=None, for the full level)"
+        "they are sound, only wider than the full level would make them (a larger work "
+        "budget, or none, reaches the full level)"
     )

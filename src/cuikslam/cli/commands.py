@@ -36,12 +36,13 @@ __all__ = [
 
 
 def console() -> Console:
-    """stdout console; wide when piped so tables do not wrap."""
+    """stdout console; wide when piped so tables do not wrap, and a message longer than
+    that stays one line (a file or a pager gets sentences whole)."""
     from rich.console import Console
 
     if sys.stdout.isatty():
         return Console()
-    return Console(width=220, color_system=None, soft_wrap=False)
+    return Console(width=220, color_system=None, soft_wrap=True)
 
 
 def _truth_path_for(log_path: Path) -> Path:

@@ -110,9 +110,9 @@ def start_figure(path: str, *, child: bool | None = None) -> FigureJob:
     child : bool, optional
         Draw in a second process (True) or here when finishing (False). By default a
         second process only when a core looks free (:func:`spare_core`): on a busy
-        machine it takes the parent's time (0.2 s slower at load 4 on two cores, see the
-        README); on a free core it can save at most the figure's own time (0.8 s at load
-        5), which could not be measured on the busy machine.
+        machine it takes the parent's time (0.2 s slower at load 4 on two cores, see
+        ``docs/benchmarks.md``); on a free core it can save at most the figure's own
+        time (0.8 s at load 5), which could not be measured on the busy machine.
 
     Returns
     -------

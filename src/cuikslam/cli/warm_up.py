@@ -1,7 +1,7 @@
 """``cuikslam warm-up``: compile every kernel into numba's on-disk cache, once, after an install.
 
 Without a cache the first command compiles the kernels itself (about a hundred; about
-20 s of CPU, see the README's timings) and the later ones load them from the cache. A
+20 s of CPU, see ``docs/benchmarks.md``) and the later ones load them from the cache. A
 wheel built from the source tree (``pip install .``) already holds the cache, compiled by
 the build (``build_backend/``) with :func:`warm_part`; this command is for the other
 cases: an editable install, ``NUMBA_CACHE_DIR`` set, a ``site-packages`` the user cannot
@@ -10,8 +10,8 @@ another numba (numba ignores such a cache and compiles). The kernels are in two 
 the narrowing (the factors' fixpoint, the ``lp`` level, the witness check's interval
 operations) and the correspondence search (its search, bisection and gating kernels);
 ``--jobs 2`` compiles them in two processes at once. That costs about a third more CPU
-(both compile the interval core): measured on a busy machine it was slower (README,
-*Developing*), it can only pay on two free cores.
+(both compile the interval core): measured on a busy machine it was slower (``docs/benchmarks.md``,
+"Install and start-up"), it can only pay on two free cores.
 It also byte-compiles the package's modules (``compileall``) where pip did not (an
 editable install, or ``PYTHONDONTWRITEBYTECODE`` set): importing them from source costs
 about 0.2 s a command.

@@ -69,8 +69,9 @@ SEARCH_SHARE = 0.7
 survivors (bisection, the stronger level), even when the search is cut short."""
 MAINTAIN_EVERY = 1024
 """Node expansions between two looks at the shared graph's housekeeping."""
-SHOWN_PREFIXES = 5
-"""Unexplored subtrees named in the message of a search stopped by its budget."""
+SHOWN_PLACES = 5
+"""Observations named, where unexplored subtrees branch, in the message of a search stopped
+by its budget."""
 
 
 @dataclass
@@ -179,19 +180,40 @@ def _maintain(
     return nodes[: len(stack)], nodes[len(stack) :]
 
 
-def _prefix(decisions: list[int], ends: int = 4) -> str:
-    """A subtree's decisions for a message: whole when short, else both ends and the depth.
+def _branch_places(log: Log, explorer: Explorer, unexplored: list[list[int]]) -> str:
+    """Where the unexplored subtrees branch, for a message: the observation whose other
+    landmarks each would try (its log line, or its place in the log when it was built in
+    code), the next to explore first, each observation once.
 
-    >>> _prefix([0, 1, 2])
-    '[0, 1, 2]'
-    >>> _prefix(list(range(100)))
-    '[0, 1, 2, 3, ... 92 more ..., 96, 97, 98, 99] (depth 100)'
+    >>> from cuikslam.log import parse_log_lines
+    >>> log = parse_log_lines([
+    ...     '{"type": "prior", "pose": 0, "x": [0, 0], "y": [0, 0], "theta": [0, 0]}',
+    ...     '{"type": "observation", "pose": 0, "class": "c", "range": [1, 2], "bearing": [0, 1]}',
+    ...     '{"type": "observation", "pose": 0, "class": "c", "range": [3, 4], "bearing": [0, 1]}',
+    ... ])
+    >>> explorer = Explorer(build_problem(log), DEFAULT_RTOL, "hull", 0, True)
+    >>> _branch_places(log, explorer, [[0], [0, 1], [1, 0]])
+    'line 3 (pose 0), line 2 (pose 0)'
     """
-    if len(decisions) <= 3 * ends:
-        return str(list(decisions))
-    head = ", ".join(map(str, decisions[:ends]))
-    tail = ", ".join(map(str, decisions[-ends:]))
-    return f"[{head}, ... {len(decisions) - 2 * ends} more ..., {tail}] (depth {len(decisions)})"
+    decisions = explorer.problem.decisions
+    places: list[str] = []
+    for prefix in unexplored[::-1]:
+        if not prefix:
+            place = "the first observation without a landmark id"
+        else:
+            decision = decisions[len(prefix) - 1]
+            record = log.records[decision.record]
+            where = (
+                f"line {record.line}"
+                if record.line
+                else f"the observation of index {decision.position}"
+            )
+            place = f"{where} (pose {decision.pose})"
+        if place not in places:
+            places.append(place)
+        if len(places) == SHOWN_PLACES:
+            break
+    return ", ".join(places)
 
 
 def _rank_key(explorer: Explorer, node: Node) -> tuple[int, int, int, float]:
@@ -366,11 +388,12 @@ def finish_search(
         tally.envelope.cover_root()
     if not complete:
         stats.unexplored_subtrees = len(unexplored)
-        shown = "; ".join(_prefix(d) for d in unexplored[-SHOWN_PREFIXES:][::-1])
         messages.append(
-            f"the search stopped on its {stop_reason} with {len(unexplored)} "
-            f"subtrees unexplored ({100 * (1 - stats.explored_fraction):.1f}% of the tree; "
-            f"first: {shown}); the result is INCOMPLETE: the true hypothesis may be in them"
+            f"the search stopped on its {stop_reason} with {len(unexplored):,} subtrees "
+            f"unexplored ({100 * (1 - stats.explored_fraction):.1f}% of the tree): the result "
+            "is INCOMPLETE, and the true hypothesis may be in them; the next ones to explore "
+            "try other landmarks for the observations at "
+            f"{_branch_places(log, explorer, unexplored)}"
         )
     as_leaves = stats.refuted_by_bisection
     survivors, bisected, spare = bisect_with_reserve(

@@ -4,7 +4,7 @@ The LPs of a window (:mod:`.lp_bounds`) share their rows and column bounds: only
 variable minimised or maximised changes. HiGHS solves the first one; its optimal basis
 stays primal feasible for every other cost, so the rest need only primal simplex phase 2.
 On these small LPs (a few hundred rows, about a hundred columns) HiGHS's fixed cost per
-call dominates (figures in the README, "Consistency levels"); this kernel works on the
+call dominates (figures in ``docs/benchmarks.md``, "Long logs"); this kernel works on the
 dense inverse of the active constraints (one per column: a vertex is where ``n``
 constraints hold with equality), and computes each safe bound in the same pass.
 

@@ -18,8 +18,8 @@
   are tighter on half the heading interval. Tighter boxes than ``lp``, for a few times
   its cost.
 
-How close each level comes to the exact hull, and at what cost, is measured in the
-README ("Consistency levels", "Measured figures"; ``benchmarks/``), not here.
+How close each level comes to the exact hull, and at what cost, is measured in
+``docs/concepts/levels.md`` and ``docs/benchmarks.md`` (``benchmarks/``), not here.
 
 Every level is sound: the boxes still contain every solution, and an empty result is a
 proof that the constraints have no solution.

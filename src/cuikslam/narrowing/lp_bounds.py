@@ -19,7 +19,7 @@ solved once more from scratch.
 The LPs of one call differ only in their cost, so after HiGHS's first optimum the others
 are solved by a compiled primal simplex (:mod:`._simplex`) from the last optimum: on these
 small LPs HiGHS's fixed cost per call dominates, and the kernel's iterations are cheaper
-than HiGHS's (figures in the README, "Consistency levels"). An LP the kernel cannot
+than HiGHS's (figures in ``docs/benchmarks.md``, "Long logs"). An LP the kernel cannot
 finish goes back to HiGHS.
 """
 

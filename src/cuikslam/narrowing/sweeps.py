@@ -44,13 +44,13 @@ REUSE_FROM = 3
 """From this sweep on (counting from 0), no LP is solved: each bound is the safe bound of
 the multipliers of its last LP over the window's new relaxation (see
 ``lp_bounds.certified_bounds(reuse=True)``). It follows the neighbours' narrowing while
-the LP's optimal basis stays optimal (measured in the README, "Measured figures": long
-logs)."""
+the LP's optimal basis stays optimal (measured in ``docs/benchmarks.md``, "Long
+logs")."""
 REUSE_MIN_WINDOWS = 8
 """Logs with fewer windows solve every sweep's LPs: there the later sweeps gain from the
 relaxation of narrower boxes, not only from the neighbours (on the seed's experiment, one
-window, reusing multipliers made the worst box markedly wider; README, "Measured
-figures")."""
+window, reusing multipliers made the worst box markedly wider; ``docs/benchmarks.md``,
+"Long logs")."""
 FULL_ROUND_EVERY = 3
 """Every this many sweeps, stale bounds are solved again all the same."""
 UNSTALE_SHRINK = 0.02

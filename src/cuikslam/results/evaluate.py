@@ -57,9 +57,11 @@ class WidthStats:
         w = np.asarray(widths, dtype=float).ravel()
         if w.size == 0:
             return cls(math.nan, math.nan, math.nan, 0)
-        # "higher" picks a sample, so an unbounded width never meets inf - inf.
+        # The median as `cuikslam solve` prints it (results.overview: the mean of the two
+        # middle widths of an even count); "higher" picks a sample for the 95th percentile,
+        # so an unbounded width never meets inf - inf.
         return cls(
-            float(np.percentile(w, 50, method="higher")),
+            float(np.median(w)),
             float(np.percentile(w, 95, method="higher")),
             float(w.max()),
             int(w.size),

@@ -136,7 +136,8 @@ def certify(
         )
         solution.messages.append(
             f"the witness search stopped at {why}: {len(unfinished)} of {len(chosen)} "
-            f"hypotheses undecided (not refuted, not proven): {_ranges(unfinished)}"
+            f"hypotheses undecided (not refuted, not proven): "
+            f"{'rank' if len(unfinished) == 1 else 'ranks'} {_ranges(unfinished)}"
         )
     return stats
 
