@@ -9,6 +9,7 @@ reports a hypothesis.
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from hypothesis import HealthCheck, assume, given, note, settings
 
@@ -18,8 +19,11 @@ from cuikslam.hypotheses.dive import dive
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.tree import SearchLimit
+from cuikslam.hypotheses.witness import certify
 from cuikslam.results.association import partition
-from cuikslam.simulate import simulate_random_world
+from cuikslam.results.solution import PROVEN, Solution
+from cuikslam.simulate import simulate_paper, simulate_random_world
+from cuikslam.solver import solve
 from worlds import World, worlds
 
 HEALTH = [HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large]
@@ -91,3 +95,69 @@ def test_the_dive_reaches_a_leaf_of_a_sparse_world_within_its_share() -> None:
     assert solution.statistics["dive_discrepancies"] == 0
     assert solution.statistics["dive_nodes"] >= len(log.observations)
     assert solution.complete and solution.hypotheses
+
+
+def _certify_one(log):
+    """The solver's ``prove``: the witness search on one hypothesis."""
+
+    def prove(hypothesis) -> None:
+        certify(log, Solution([hypothesis]))
+
+    return prove
+
+
+def test_the_dive_leaf_is_proven_before_the_exhaustive_search() -> None:
+    """The seed's experiment without ids: the witness search proves the dive's leaf as soon
+    as it is found, and the report keeps that proof (the witness lies in the hypothesis'
+    final boxes, narrowed to ``lp`` after the proof)."""
+    log, _ = simulate_paper(seed=0, unknown=True)
+    proved: list[list[str]] = []
+
+    def prove(hypothesis) -> None:
+        _certify_one(log)(hypothesis)
+        if hypothesis.status == PROVEN:
+            proved.append(hypothesis.assignment)
+
+    solution = solve_unknown(log, consistency="lp", prove=prove)
+    assert solution.statistics["dive_proven"] == 1 and len(proved) == 1
+    assert solution.statistics["dive_proven_work"] == 0  # no budget: nothing metered
+    [early] = [h for h in solution.hypotheses if h.assignment == proved[0]]
+    assert early.status == PROVEN and early.consistency == "lp"
+    for boxes, points in ((early.poses[:, :2], early.witness["poses_xyt"][:, :2]),
+                          (early.landmarks, early.witness["landmarks_xy"])):  # fmt: skip
+        assert np.all(boxes[..., 0] <= points) and np.all(points <= boxes[..., 1])
+    assert solution.hypotheses[0] is early  # a proven hypothesis ranks first
+    witness = early.witness
+    others = [h for h in solution.hypotheses if h is not early]
+    searched = certify(log, solution)  # the early proof is kept, not searched again
+    assert early.status == PROVEN and early.witness is witness
+    assert searched.starts >= len(others) > 0
+    assert solution.statistics["proven_hypotheses"] == sum(
+        h.status == PROVEN for h in solution.hypotheses
+    )
+
+
+def test_a_leaf_not_proven_leaves_the_report_as_it_was() -> None:
+    log, _ = simulate_paper(seed=0, unknown=True)
+    calls: list[int] = []
+    plain = solve_unknown(log, consistency="hull")
+    tried = solve_unknown(log, consistency="hull", prove=lambda h: calls.append(len(h.assignment)))
+    assert calls == [len(log.observations)]
+    assert tried.statistics["dive_proven"] == 0
+    assert [h.assignment for h in tried.hypotheses] == [h.assignment for h in plain.hypotheses]
+    assert all(h.status != PROVEN for h in tried.hypotheses)
+
+
+def test_the_solver_proves_the_dive_leaf_within_the_budget() -> None:
+    """``solve`` gives the dive's leaf to the witness search (its share of the work
+    budget): on a 60-pose sparse world of look-alike landmarks the hypothesis is proven
+    before the exhaustive search goes on, and the work it took is recorded."""
+    log, _ = simulate_random_world(
+        seed=42, n_poses=60, n_landmarks=15, size=(30.0, 20.0), max_range=6.0, unknown=True
+    )
+    solution = solve(log, consistency="hull", work_budget=1e7)
+    stats = solution.statistics
+    assert stats["dive_proven"] == 1
+    assert 0 < stats["dive_proven_work"] <= stats["work_spent"]
+    assert solution.hypotheses[0].status == PROVEN
+    assert "dive_proven_s" in solution.timings

@@ -55,6 +55,10 @@ evaluation limit) bounds the search."""
 SEARCH_SHARE = 0.8
 """Fraction of the budget the correspondence search (with its survivors' stronger
 level) may use; the witness search gets the rest, and whatever the search did not need."""
+EARLY_PROOF_SHARE = 0.2
+"""Share of the budget the witness search may use on the search's first leaf (its dive's)
+before the exhaustive search goes on: a proven hypothesis early, whatever the search
+reaches later."""
 FIT_SHARE = 0.5
 """Share of the time left after the search that the least-squares fit of the reported
 hypotheses (their ranking) may use; the stronger level (within ``SEARCH_SHARE``) and the
@@ -192,6 +196,9 @@ def solve(
             progress=progress,
             deadline=portion(deadline, SEARCH_SHARE),
             on_survivor=on_survivor,
+            prove=lambda hypothesis: certify(
+                log, Solution([hypothesis]), deadline=portion(deadline, EARLY_PROOF_SHARE)
+            ),
             rank=lambda report: fit_hypotheses(
                 log,
                 report,

@@ -34,7 +34,7 @@ import numpy as np
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import COSTS, Budget, deadline_after, expired, portion, remaining, spend
 from cuikslam.hypotheses.bisection import Bisection, allotment, refute_by_bisection
-from cuikslam.hypotheses.dive import DIVE_SHARE, Dive, dive
+from cuikslam.hypotheses.dive import DIVE_SHARE, Dive, dive, keep_proof, prove_leaf
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.problem import build_problem
@@ -60,7 +60,7 @@ from cuikslam.hypotheses.tree import Node, SearchLimit, SearchStatistics
 from cuikslam.log.records import Log
 from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
-from cuikslam.results.solution import Solution
+from cuikslam.results.solution import Hypothesis, Solution
 
 __all__ = [
     "SubtreeResult",
@@ -171,6 +171,7 @@ def search_distributed(
     on_result: Callable[[SubtreeResult], None] | None = None,
     on_unexplored: Callable[[list[Prefix]], None] | None = None,
     rank: Rank | None = None,
+    prove: Callable[[Hypothesis], None] | None = None,
 ) -> Solution:
     """:func:`~cuikslam.hypotheses.solve_unknown` with its subtrees explored on ``client``'s
     workers (a :class:`distributed.Client`); the same parameters, and:
@@ -211,8 +212,10 @@ def search_distributed(
     split_s = merge_s = 0.0
     slots = max(1, sum(client.nthreads().values()))
     early = Dive()
+    proof = None
     if root is not None:
         early = dive(explorer, root, SearchLimit(portion(searching, DIVE_SHARE), max_nodes))
+        proof = prove_leaf(explorer, early, prove)
         prefixes = run.split(root, SPLIT_PER_SLOT * slots)
         split_s = time.perf_counter() - start
         options = TaskOptions(
@@ -238,6 +241,8 @@ def search_distributed(
         strengthen_limit, progress, start, messages,
         lambda *job: _refute_on_cluster(client, slots, *job), rank,
     )  # fmt: skip
+    if proof is not None:
+        keep_proof(solution, proof)
     solution.statistics.update(
         tasks=run.tasks, resubmitted=run.resubmitted, lost_on_replay=run.lost_on_replay,
         worker_cpu_s=run.cpu_s,

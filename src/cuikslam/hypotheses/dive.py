@@ -13,18 +13,24 @@ no more than one near a leaf, which is what chronological backtracking gets wron
 Every node it expands is expanded by the same rules as the exhaustive search, so a leaf
 it reaches is a survivor of the same search: the truth is never cut by it (it cuts
 nothing), and the leaf joins the result whenever the exhaustive search did not reach it
-itself (:func:`.search.solve_unknown`).
+itself (:func:`.search.solve_unknown`). The search may have the leaf proven consistent at
+once (:func:`prove_leaf`, by the witness search): a user then has a proven hypothesis
+however far the exhaustive search gets.
 """
 
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from dataclasses import asdict, fields
 
 from cuikslam.budget import COSTS, spend
 from cuikslam.hypotheses.explorer import Explorer
+from cuikslam.hypotheses.survivors import hypothesis_of
 from cuikslam.hypotheses.tree import Node, SearchLimit
+from cuikslam.results.solution import PROVEN, Hypothesis, Solution
 
-__all__ = ["DIVE_SHARE", "MAX_DISCREPANCIES", "Dive", "dive"]
+__all__ = ["DIVE_SHARE", "MAX_DISCREPANCIES", "Dive", "dive", "keep_proof", "prove_leaf"]
 
 DIVE_SHARE = 0.25
 """Share of the search's budget the dive may use (what it does not use goes to the
@@ -137,3 +143,34 @@ def _probe(
         later = [(kid, left - 1) for kid in kids[1:]] if left > 0 else []
         stack.extend(reversed([(kid, left) for kid in kids[:1]] + later))
     return False
+
+
+def prove_leaf(
+    explorer: Explorer, early: Dive, prove: Callable[[Hypothesis], None] | None
+) -> Hypothesis | None:
+    """The dive's leaf as a hypothesis, when ``prove`` proves it consistent (else None):
+    see ``prove`` of :func:`.search.solve_unknown`."""
+    if early.leaf is None or prove is None:
+        return None
+    hypothesis = hypothesis_of(explorer, early.leaf)
+    prove(hypothesis)
+    if hypothesis.status != PROVEN:
+        return None
+    explorer.stats.dive_proven = 1
+    if explorer.deadline is not None:
+        explorer.stats.dive_proven_work = round(explorer.deadline.meter.spent)
+    explorer.proven_at = time.perf_counter()
+    return hypothesis
+
+
+def keep_proof(solution: Solution, proof: Hypothesis) -> None:
+    """The early proof in the report: its witness on the hypothesis of the same assignment
+    (its boxes are the report's, narrowed further), or the hypothesis itself at the head
+    when the report left it out (a proven hypothesis ranks first)."""
+    for h in solution.hypotheses:
+        if h.assignment == proof.assignment:
+            h.status, h.witness = PROVEN, proof.witness
+            break
+    else:
+        solution.hypotheses.insert(0, proof)
+    solution.hypotheses.sort(key=lambda h: h.rank_key)

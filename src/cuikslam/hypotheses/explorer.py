@@ -71,6 +71,8 @@ class Explorer:
         self.ambiguity_lp_s = 0.0
         """Seconds the ``lp`` level took on nodes about to branch (a timing: kept apart
         from the statistics, which are the same on every machine)."""
+        self.proven_at: float | None = None
+        """perf_counter() when the dive's leaf was proven consistent (:func:`.dive.prove_leaf`)."""
         self.local = (
             LocalCheck(problem.pose_x, len(problem.lo), rtol, DEFAULT_ROUNDS, problem.sensor_x)
             if local

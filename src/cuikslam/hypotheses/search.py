@@ -28,7 +28,7 @@ from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import COSTS, Budget, portion, spend
 from cuikslam.hypotheses._shared import SharedGraph
 from cuikslam.hypotheses.bisection import refute_by_bisection
-from cuikslam.hypotheses.dive import DIVE_SHARE, Dive, dive
+from cuikslam.hypotheses.dive import DIVE_SHARE, Dive, dive, keep_proof, prove_leaf
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.labelled import has_labelled_logs, solve_labelled
 from cuikslam.hypotheses.problem import build_problem
@@ -47,7 +47,7 @@ from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
 from cuikslam.narrowing.propagation import DEFAULT_RTOL
 from cuikslam.options import SolveOptions
 from cuikslam.outliers import search_outliers_json
-from cuikslam.results.solution import Solution
+from cuikslam.results.solution import Hypothesis, Solution
 from cuikslam.results.summary import describe, summarize, summary_to_json
 
 __all__ = [
@@ -249,6 +249,7 @@ def solve_unknown(
     on_survivor: Callable[[list[str]], None] | None = None,
     local_frame: bool = True,
     rank: Rank | None = None,
+    prove: Callable[[Hypothesis], None] | None = None,
 ) -> Solution:
     """Solve a log whose observations may lack landmark ids; return the surviving hypotheses.
 
@@ -294,6 +295,12 @@ def solve_unknown(
         :data:`Rank`); the stronger level then follows its order. Without it, the report
         is ranked by fewest outliers, fewest landmarks, then smallest boxes, and
         ``Solution.unreported`` holds the other survivors' assignments.
+    prove : callable, optional
+        Called with the dive's leaf (:mod:`.dive`) as a hypothesis as soon as the dive
+        finds it, before the exhaustive search goes on: it may prove it consistent (set its
+        ``status`` to proven and its ``witness``), as the witness search does. A proven
+        leaf is then reported proven whatever the budget leaves for the stages after the
+        search (a witness lies in every sound box of its hypothesis).
 
     Returns
     -------
@@ -316,21 +323,28 @@ def solve_unknown(
     if root is not None:
         limit = SearchLimit(portion(deadline, SEARCH_SHARE), max_nodes)
         early = dive(explorer, root, SearchLimit(portion(limit.deadline, DIVE_SHARE), max_nodes))
+        proof = prove_leaf(explorer, early, prove)
         outcome = explore(explorer, root, limit, keep, tally.add, progress, reserve=keep)
         if outcome.stop_reason is not None and not outcome.survivors and not early.finished:
             # nothing found: the stages after the search have nothing to decide, so the
             # dive goes on with what they would have had (less a reserve for its leaf)
             more = SearchLimit(portion(deadline, SEARCH_SHARE), max_nodes)
             early = dive(explorer, root, more, early)
+            proof = proof or prove_leaf(explorer, early, prove)
         _join_dive(explorer, tally, outcome, early, keep)
+    else:
+        proof = None
     unexplored = [n.decisions() for n in outcome.unexplored]
     for node in outcome.unexplored:  # the truth may lie under any of them
         tally.envelope.add(node)
-    return finish_search(
+    solution = finish_search(
         log, explorer, tally, outcome.survivors, unexplored, outcome.stop_reason,
         consistency, strengthen_limit, progress, start, messages, rank=rank,
         reserve=outcome.reserve, unexplored_covered=True,
     )  # fmt: skip
+    if proof is not None:
+        keep_proof(solution, proof)
+    return solution
 
 
 def _join_dive(explorer: Explorer, tally: Tally, outcome: _Outcome, early: Dive, keep: int) -> None:
@@ -484,6 +498,7 @@ def finish_search(
         timings={
             "solve_s": time.perf_counter() - start,
             "ambiguity_lp_s": explorer.ambiguity_lp_s,
+            **({} if explorer.proven_at is None else {"dive_proven_s": explorer.proven_at - start}),
             **ranked.timings,
         },
         log_path=log.path,

@@ -79,6 +79,11 @@ class SearchStatistics:
     dive_discrepancies: int = -1
     """Departures from the likeliest children on the path of the leaf the dive found (-1:
     none found)."""
+    dive_proven: int = 0
+    """1 when the dive's leaf was proven consistent (a witness) before the exhaustive search
+    went on (``prove`` of :func:`.search.solve_unknown`)."""
+    dive_proven_work: int = 0
+    """Work units the solve had spent when the dive's leaf was proven (0: not proven)."""
     dive_leaf_added: int = 0
     """1 when the dive's leaf lies in a subtree the exhaustive search left unexplored, and
     joined the survivors from there."""

@@ -47,7 +47,8 @@ def certify(
 ) -> WitnessStatistics:
     """Mark every hypothesis of ``solution`` whose consistency is proven.
 
-    For each hypothesis (the first ``max_hypotheses`` when given), the search of
+    For each hypothesis (the first ``max_hypotheses`` when given) not proven already (one
+    with a ``witness``, proven by the search's dive, keeps it), the search of
     :func:`find_witness` (started from its boxes, then midpoints, then random points) and
     :func:`verify_witness`; on success ``status`` becomes ``PROVEN`` and ``witness`` holds
     ``poses_xyt`` (rows in the hypothesis' ``pose_ids`` order) and ``landmarks_xy`` (rows in
@@ -74,8 +75,11 @@ def certify(
     stats = WitnessStatistics()
     chosen = solution.hypotheses if max_hypotheses is None else solution.hypotheses[:max_hypotheses]
     most = None if restarts is None else 2 + restarts
-    searches = []
+    searches: list[WitnessSearch | None] = []
     for h in chosen:
+        if h.status == PROVEN and h.witness is not None:  # proven before (the search's dive)
+            searches.append(None)
+            continue
         model = HypothesisModel(log, h.assignment, use_sensor=use_sensor)
         poses_box = {pid: h.poses[k] for k, pid in enumerate(h.pose_ids)}
         landmarks_box = {lid: h.landmarks[k] for k, lid in enumerate(h.landmark_ids)}
@@ -84,7 +88,11 @@ def certify(
         )
     batch, quota = 2, FIRST_QUOTA  # the first round only: later ones run whole starts
     while True:
-        open_ = [s for s in searches if not s.finished and (most is None or s.tried < most)]
+        open_ = [
+            s
+            for s in searches
+            if s is not None and not s.finished and (most is None or s.tried < most)
+        ]
         if not open_:
             break
         if stats.evaluations >= max_total_evaluations:
@@ -98,6 +106,9 @@ def certify(
         batch, quota = min(2 * batch, 32), None
     proven = 0
     for h, search in zip(chosen, searches, strict=True):
+        if search is None:
+            proven += 1
+            continue
         if search.box is None:
             h.status, h.witness = NOT_REFUTED, None
             continue
