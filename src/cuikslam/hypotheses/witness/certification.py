@@ -20,8 +20,9 @@ from cuikslam.hypotheses.witness.find import (
     WitnessStatistics,
 )
 from cuikslam.hypotheses.witness.model import HypothesisModel
+from cuikslam.hypotheses.witness.verify import verified_box
 from cuikslam.log.records import Log
-from cuikslam.results.solution import NOT_REFUTED, PROVEN, Solution
+from cuikslam.results.solution import NOT_REFUTED, PROVEN, Hypothesis, Solution
 
 FIRST_QUOTA = 64
 """Residual evaluations each start may use in the first round of :func:`certify` when
@@ -48,7 +49,8 @@ def certify(
     """Mark every hypothesis of ``solution`` whose consistency is proven.
 
     For each hypothesis (the first ``max_hypotheses`` when given) not proven already (one
-    with a ``witness``, proven by the search's dive, keeps it), the search of
+    whose ``witness`` verifies again for its assignment, as the search's dive leaves it,
+    keeps it), the search of
     :func:`find_witness` (started from its boxes, then midpoints, then random points) and
     :func:`verify_witness`; on success ``status`` becomes ``PROVEN`` and ``witness`` holds
     ``poses_xyt`` (rows in the hypothesis' ``pose_ids`` order) and ``landmarks_xy`` (rows in
@@ -77,10 +79,10 @@ def certify(
     most = None if restarts is None else 2 + restarts
     searches: list[WitnessSearch | None] = []
     for h in chosen:
-        if h.status == PROVEN and h.witness is not None:  # proven before (the search's dive)
+        model = HypothesisModel(log, h.assignment, use_sensor=use_sensor)
+        if _witness_holds(model, h):  # proven before (the search's dive), verified again
             searches.append(None)
             continue
-        model = HypothesisModel(log, h.assignment, use_sensor=use_sensor)
         poses_box = {pid: h.poses[k] for k, pid in enumerate(h.pose_ids)}
         landmarks_box = {lid: h.landmarks[k] for k, lid in enumerate(h.landmark_ids)}
         searches.append(
@@ -165,3 +167,19 @@ def _ranges(ranks: list[int]) -> str:
         first = last = r
     parts.append(f"{first}-{last}" if last > first else str(first))
     return ", ".join(parts)
+
+
+def _witness_holds(model: HypothesisModel, hypothesis: Hypothesis) -> bool:
+    """Whether the witness ``hypothesis`` holds already is verified again for ``model``
+    (its assignment now): rigorous, as every proof (a hypothesis edited after its proof, or
+    a witness that does not verify, gets the search like any other)."""
+    witness = hypothesis.witness
+    if hypothesis.status != PROVEN or witness is None:
+        return False
+    poses = dict(zip(hypothesis.pose_ids, witness["poses_xyt"], strict=True))
+    landmarks = dict(zip(hypothesis.landmark_ids, witness["landmarks_xy"], strict=True))
+    try:
+        params = model.params_from_world(poses, landmarks, clip=False)
+    except (KeyError, ValueError):
+        return False
+    return bool(np.all(np.isfinite(params))) and verified_box(model, params) is not None
