@@ -1,14 +1,16 @@
-"""A figure drawn in a second process while the command goes on.
+"""The figure of ``cuikslam paper`` drawn in a second process while the command goes on.
 
-Importing Matplotlib, drawing and saving a figure takes most of a second, about a quarter
-of a warm ``cuikslam paper``. The command starts ``python -m cuikslam.cli.figure_job PATH``
-first, which imports Matplotlib while the parent solves the known-correspondence part (no
-time budget binds there), then hands it that result (pickled, on its stdin); the child
-draws and saves while the parent starts the second part, and the parent waits for it at
-the end. The child is done before the second part's witness search, whose time budget
-binds, so it does not take that search's time. It is used only when a core looks free
-(:func:`spare_core`); otherwise, or where no process can be started, the figure is drawn
-in-process, as before.
+Importing Matplotlib takes about half a second of a warm ``cuikslam paper``. The figure
+(:func:`~cuikslam.results.figures.plot_known_and_unknown`) shows both parts of the
+command: the known-correspondence solve beside the survivors of the unknown-correspondence
+one. The command starts ``python -m cuikslam.cli.figure_job PATH`` first, which imports
+Matplotlib while the parent solves, then hands it each part's result as soon as it is
+solved (pickled, on its stdin); with the second, the child draws the whole figure (its
+layout fixed: one drawing pass) and saves it while the parent prints its tables, and the
+parent waits for it at the end. Drawing the first part's panel ahead, while the parent
+solves the second part, saved nothing measurable (the drawing pass is the cost, and it
+needs every panel). It is used only when a core looks free (:func:`spare_core`);
+otherwise, or where no process can be started, the figure is drawn in-process, at the end.
 """
 
 from __future__ import annotations
@@ -23,6 +25,8 @@ from typing import TYPE_CHECKING
 from cuikslam.cli._common import CommandError, write_output
 
 if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
     from cuikslam.results.solution import Solution
     from cuikslam.simulate.truth import GroundTruth
 
@@ -30,6 +34,10 @@ __all__ = ["FigureJob", "spare_core", "start_figure"]
 
 _CANNOT_WRITE = 3
 """The child's exit status when the figure file could not be written (an OSError)."""
+PAPER_DPI = 150
+"""Pixels per inch of the figure: it is 11 inches wide with two survivors (1,680 pixels,
+240 per inch at a page's 7 inches); drawing it at the library's 200 would add a fifth to
+the drawing the command waits for."""
 
 
 @dataclass
@@ -38,19 +46,37 @@ class FigureJob:
 
     path: str
     process: subprocess.Popen[bytes] | None
-    drawn: tuple[Solution, GroundTruth | None] | None = None
+    known: tuple[Solution, GroundTruth | None, list[int] | None] | None = None
+    unknown: Solution | None = None
 
-    def send(self, solution: Solution, truth: GroundTruth | None) -> None:
-        """Hand over what to draw (the child has been importing Matplotlib meanwhile).
+    def send(
+        self,
+        solution: Solution,
+        truth: GroundTruth | None,
+        observation_poses: list[int] | None = None,
+    ) -> None:
+        """Hand over the known-correspondence result, its truth and the pose of each
+        observation (the child has been importing Matplotlib meanwhile).
 
-        The payload (a few kB for the seed's experiment) fits in the pipe's buffer, so this
-        does not wait for the child."""
-        self.drawn = (solution, truth)
+        The payloads (a few kB for the seed's experiment) fit in the pipe's buffer, so
+        sending does not wait for the child."""
+        self.known = (solution, truth, observation_poses)
+        self._write(self.known)
+
+    def send_unknown(self, solution: Solution | None) -> None:
+        """Hand over the unknown-correspondence result (None: none), after :meth:`send`;
+        the child then draws and saves the whole figure."""
+        self.unknown = solution
+        self._write(solution)
+        if self.process is not None and self.process.stdin is not None:
+            self.process.stdin.close()
+
+    def _write(self, payload: object) -> None:
         if self.process is not None:
             assert self.process.stdin is not None
             try:
-                self.process.stdin.write(pickle.dumps((solution, truth)))
-                self.process.stdin.close()
+                self.process.stdin.write(pickle.dumps(payload))
+                self.process.stdin.flush()
             except OSError:  # the child died: draw here
                 self.cancel()
 
@@ -62,7 +88,7 @@ class FigureJob:
             self.process = None
 
     def finish(self) -> None:
-        """Wait for the figure to be written (after :meth:`send`).
+        """Wait for the figure to be written (after :meth:`send` and :meth:`send_unknown`).
 
         Raises
         ------
@@ -72,8 +98,8 @@ class FigureJob:
             When drawing failed otherwise (a bug: the child's traceback is in the message).
         """
         if self.process is None:
-            assert self.drawn is not None, "send() first"
-            _draw_here(*self.drawn, self.path)
+            assert self.known is not None, "send() first"
+            _draw_here(*self.known, self.unknown, self.path)
             return
         assert self.process.stderr is not None  # stdout is not read: no deadlock
         message = self.process.stderr.read().decode(errors="replace").strip()
@@ -84,11 +110,28 @@ class FigureJob:
             raise RuntimeError(f"drawing {self.path} failed:\n{message}")
 
 
-def _draw_here(solution: Solution, truth: GroundTruth | None, path: str) -> None:
-    from cuikslam.results.figures import plot_solution, save_figure
+def _figure(
+    known: Solution,
+    truth: GroundTruth | None,
+    observation_poses: list[int] | None,
+    unknown: Solution | None,
+) -> Figure:
+    from cuikslam.results.figures import plot_known_and_unknown
 
-    drawing = plot_solution(solution, truth)
-    write_output(path, lambda: save_figure(drawing, path))
+    return plot_known_and_unknown(known, unknown, truth, observation_poses=observation_poses)
+
+
+def _draw_here(
+    known: Solution,
+    truth: GroundTruth | None,
+    observation_poses: list[int] | None,
+    unknown: Solution | None,
+    path: str,
+) -> None:
+    from cuikslam.results.figures import save_figure
+
+    drawing = _figure(known, truth, observation_poses, unknown)
+    write_output(path, lambda: save_figure(drawing, path, PAPER_DPI, tight=False))
 
 
 def spare_core() -> bool:
@@ -117,8 +160,9 @@ def start_figure(path: str, *, child: bool | None = None) -> FigureJob:
     Returns
     -------
     FigureJob
-        Call :meth:`~FigureJob.send`, then :meth:`~FigureJob.finish` before reporting the
-        figure written (or :meth:`~FigureJob.cancel`).
+        Call :meth:`~FigureJob.send`, :meth:`~FigureJob.send_unknown`, then
+        :meth:`~FigureJob.finish` before reporting the figure written (or
+        :meth:`~FigureJob.cancel`).
     """
     path = os.fspath(path)
     if not (spare_core() if child is None else child):
@@ -138,15 +182,20 @@ def start_figure(path: str, *, child: bool | None = None) -> FigureJob:
 def _main(path: str) -> int:
     import matplotlib.pyplot  # noqa: F401  (imported while the parent solves)
 
-    from cuikslam.results.figures import plot_solution, save_figure
+    from cuikslam.results.figures import save_figure
 
-    payload = sys.stdin.buffer.read()
-    if not payload:  # the parent stopped without sending anything
-        return 0
-    solution, truth = pickle.loads(payload)
-    drawing = plot_solution(solution, truth)
+    stream = sys.stdin.buffer
     try:
-        save_figure(drawing, path)
+        known = pickle.load(stream)
+    except EOFError:  # the parent stopped without sending anything
+        return 0
+    try:
+        unknown = pickle.load(stream)
+    except EOFError:  # the parent stopped before the second part: no figure
+        return 0
+    drawing = _figure(*known, unknown)
+    try:
+        save_figure(drawing, path, PAPER_DPI, tight=False)
     except OSError as err:
         print(err.strerror or err, file=sys.stderr)
         return _CANNOT_WRITE

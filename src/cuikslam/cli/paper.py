@@ -9,7 +9,7 @@ from rich.console import Console
 from rich.table import Table
 
 from cuikslam.cli._common import check_figure_path, check_output_path, write_output
-from cuikslam.cli.figure_job import start_figure
+from cuikslam.cli.figure_job import FigureJob, start_figure
 from cuikslam.cli.warm_up import note_compiling
 from cuikslam.results.association import truth_verdict
 from cuikslam.results.io import write_result_file
@@ -29,10 +29,15 @@ def _report_truth(solution: Solution, truth: GroundTruth, console: Console) -> b
     return verdict.ok
 
 
-def _unknown_correspondence(seed: int, console: Console, budgets: dict[str, Any]) -> bool:
-    """The same experiment without landmark ids: the seed's Tables 2-6 question."""
+def _unknown_correspondence(
+    seed: int, console: Console, budgets: dict[str, Any], drawing: FigureJob | None
+) -> bool:
+    """The same experiment without landmark ids: the seed's Tables 2-6 question; its
+    survivors go to the figure as soon as they are known."""
     log, truth = simulate_paper(seed=seed, unknown=True)
     solution = solve(log, **budgets)
+    if drawing is not None:
+        drawing.send_unknown(solution)  # drawn while the tables are printed
     stats = solution.statistics
     table = Table(
         title="Unknown correspondence: the robot cannot tell the doors (or the corridors) apart",
@@ -104,7 +109,8 @@ def run_paper(
     work_budget: float | str | None = "auto",
     time_budget: float | None = None,
 ) -> int:
-    """Simulate the seed's experiment, solve it with and without landmark ids, report.
+    """Simulate the seed's experiment, solve it with and without landmark ids, report, and
+    draw both in one figure (the known-correspondence solve beside each survivor).
 
     ``work_budget`` (work units, ``"auto"`` or None) and ``time_budget`` (an optional cap
     in seconds) bound each of the two solves (see :class:`~cuikslam.options.SolveOptions`)."""
@@ -122,8 +128,8 @@ def run_paper(
             drawing.cancel()
         console.print("error: the simulated experiment was refuted; please report this bug")
         return 1
-    if drawing is not None:
-        drawing.send(solution, truth)  # drawn while the second part is solved
+    if drawing is not None:  # its panel is drawn while the second part is solved
+        drawing.send(solution, truth, [o.pose for o in log.observations])
     best = solution.best
     console.print(
         f"The seed paper's experiment (noise seed {seed}): 9 poses around a 30 m room, "
@@ -146,7 +152,7 @@ def run_paper(
         )
     )
     ok = _report_truth(solution, truth, console)
-    ok &= _unknown_correspondence(seed, console, budgets)
+    ok &= _unknown_correspondence(seed, console, budgets, drawing)
     if json_path:
         write_output(json_path, lambda: write_result_file(solution, json_path))
     if drawing is not None:
