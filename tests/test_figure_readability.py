@@ -204,16 +204,22 @@ def test_an_incomplete_search_with_no_hypothesis_draws_its_envelope():
     legends_off_the_data(fig)
 
 
-def test_the_envelope_is_drawn_under_every_survivor():
+def test_the_envelope_is_drawn_under_every_survivor_which_the_panels_frame():
     h = make_hypothesis()
-    solution = Solution([h, renamed(h, {"L1": "L2", "L2": "L1"})], envelope=an_envelope(h, 3.0))
-    fig = plot_solution(solution)
+    survivors = [h, renamed(h, {"L1": "L2", "L2": "L1"})]
+    fig = plot_solution(Solution(survivors, envelope=an_envelope(h, 0.1)))
     for ax in (a for a in fig.axes if a.get_visible()):
         envelope = [p for p in ax.patches if p.get_zorder() == 1.5]
         assert len(envelope) == 3
-        x_lo, x_hi = ax.get_xlim()
-        assert x_lo <= h.poses[0, 0, 0] - 3.0 and h.poses[2, 0, 1] + 3.0 <= x_hi  # framed
+        assert all(
+            p.get_edgecolor()[:3] == matplotlib.colors.to_rgb(ENVELOPE_COLOR) for p in envelope
+        )
     assert "pose envelope (any correspondence)" in all_texts(fig)
+    # an envelope far wider than the hypotheses (a search cut short) runs past the frame
+    fig = plot_solution(Solution(survivors, envelope=an_envelope(h, 100.0)))
+    ax = fig.axes[0]
+    assert ax.get_xlim()[1] < h.poses[2, 0, 1] + 100.0  # the survivors stay readable
+    assert "pose envelope (any correspondence,\nsome past the frame)" in all_texts(fig)
 
 
 def test_the_envelope_alone_on_axes():

@@ -216,9 +216,10 @@ def _legend_handles(colors: dict[str, Any], kinds: Collection[str]) -> list:
                    label="sighting the survivors assign differently")
         )  # fmt: skip
     if "envelope_poses" in kinds:
+        past = ",\nsome past the frame" if "envelope_past_frame" in kinds else ""
         handles.append(
             Patch(facecolor="none", edgecolor=ENVELOPE_COLOR, linewidth=ENVELOPE_WIDTH,
-                  label="pose envelope (any correspondence)")
+                  label=f"pose envelope (any correspondence{past})")
         )  # fmt: skip
     if "envelope_landmarks" in kinds:
         handles.append(

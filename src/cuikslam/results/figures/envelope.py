@@ -70,6 +70,7 @@ def plot_envelope_on_axes(
         Add a legend to the right of the axes.
     extent : (x_min, x_max, y_min, y_max), optional
         Axes limits and clip box; default: the finite bounds of the envelope and the truth.
+        A box wider than it runs past the axes' edges (unbounded sides are drawn dashed).
     max_pose_boxes : int or None
         Draw at most about this many pose boxes (:func:`drawn_poses`); None draws all.
 
@@ -77,6 +78,8 @@ def plot_envelope_on_axes(
     -------
     dict[str, list]
         ``envelope_poses`` (Rectangle per drawn pose box, light outlines),
+        ``envelope_past_frame`` (those of them that run past the extent: the axes cut
+        them),
         ``envelope_landmarks`` (Rectangle per drawn observation box, dotted), the truth
         as :func:`plot_hypothesis_on_axes` gives it, and ``legend``.
     """
@@ -86,7 +89,14 @@ def plot_envelope_on_axes(
     drawn = drawn_poses(poses, max_pose_boxes)
     style = {"edgecolor": ENVELOPE_COLOR, "linewidth": ENVELOPE_WIDTH, "zorder": 1.5}
     rects, _ = _rectangles(ax, poses[drawn, :2], extent, facecolor="none", **style)
-    artists: dict[str, list] = {"envelope_poses": rects, "envelope_landmarks": []}
+    frame = np.array([[extent[0], extent[1]], [extent[2], extent[3]]])
+    finite = np.nan_to_num(poses[drawn, :2], posinf=np.inf, neginf=-np.inf)
+    past = (finite[:, :, 0] < frame[:, 0]).any(axis=1) | (finite[:, :, 1] > frame[:, 1]).any(axis=1)
+    artists: dict[str, list] = {
+        "envelope_poses": rects,
+        "envelope_past_frame": [r for r, out in zip(rects, past, strict=True) if out],
+        "envelope_landmarks": [],
+    }
     if landmarks:
         boxes = _xy_boxes(envelope.observations)
         bounded = np.unique(boxes[np.isfinite(boxes).all(axis=(1, 2))], axis=0)

@@ -241,18 +241,14 @@ def _used_colors(colors: dict[str, Any], shown: Sequence[Hypothesis]) -> dict[st
 def _solution_extent(
     shown: Sequence[Hypothesis], envelope: Envelope | None, truth: GroundTruth | None
 ) -> Extent:
-    """The extent shared by a figure's panels: every hypothesis shown, the envelope's pose
-    boxes (and its landmark boxes when no hypothesis is shown), and the truth drawn."""
-    extents = [_hypothesis_extent(h, truth) for h in shown]
+    """The extent shared by a figure's panels: every hypothesis shown and the truth drawn;
+    with none, the envelope's boxes. (Panels of hypotheses frame them: an envelope box
+    wider than the frame, as after a search cut short, runs past its edges.)"""
+    if shown:
+        return _union_extent(_hypothesis_extent(h, truth) for h in shown)
     if envelope is not None:
-        if shown:  # its landmarks are not drawn: only its poses count
-            extents.append(scene_extent([envelope.poses]))
-        else:
-            extents.append(_envelope_extent(envelope, truth))
-    if not extents:
-        points = [] if truth is None else [truth.poses_xyt, truth.landmarks_xy]
-        return scene_extent([], points)
-    return _union_extent(extents)
+        return _envelope_extent(envelope, truth)
+    return scene_extent([], [] if truth is None else [truth.poses_xyt, truth.landmarks_xy])
 
 
 @dataclass
