@@ -93,15 +93,21 @@ def overlap(a: Bbox, b: Bbox) -> float:
 
 
 def legends_off_the_data(fig: Figure) -> None:
-    """Assert that no legend covers the plotting area of an axes that draws data."""
+    """Assert that no legend covers the plotting area of an axes that draws data, nor an
+    axes' title or axis labels."""
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
     legends = list(fig.legends) + [ax.get_legend() for ax in fig.axes if ax.get_legend()]
     assert legends, "the figure has no legend"
     plots = [ax for ax in fig.axes if ax.get_visible() and (ax.lines or ax.patches)]
     for legend, ax in itertools.product(legends, plots):
-        covered = overlap(legend.get_window_extent(renderer), ax.get_window_extent(renderer))
+        box = legend.get_window_extent(renderer)
+        covered = overlap(box, ax.get_window_extent(renderer))
         assert covered < 1.0, f"a legend covers {covered:.0f} px² of {ax.get_title()!r}"
+        for text in (ax.title, ax.xaxis.label, ax.yaxis.label):
+            if text.get_text() and text.get_visible():
+                covered = overlap(box, text.get_window_extent(renderer))
+                assert covered < 1.0, f"a legend covers {text.get_text()!r} ({covered:.0f} px²)"
 
 
 def png_dpi(data: bytes) -> float:

@@ -213,7 +213,8 @@ def plot_solution(
         layout="constrained",
         squeeze=False,
     )
-    fig.get_layout_engine().set(hspace=0.05, wspace=0.04)  # keep titles off the row above
+    # keep titles off the row above, and the x labels off the legend below
+    fig.get_layout_engine().set(hspace=0.05, wspace=0.04, h_pad=0.1)
     width = 44 if ncols <= 3 else 36
     marked = set(ambiguous_observations(solution))
     drawn = []

@@ -34,7 +34,9 @@ __all__ = ["plot_known_and_unknown"]
 AXES_INCHES = 3.2
 """The width of a panel's plot (its height follows the scene's aspect ratio)."""
 _LINE_INCHES = 0.16
-"""The height of a title line (``small`` text) or of a legend row."""
+"""The height of a title line (``small`` text)."""
+_PAD_INCHES = 0.08
+"""Between the figure's edge and its suptitle or legend, and above the legend."""
 _Y_LABELS_INCHES = 0.55
 """Room left of a plot for its y tick labels and y label."""
 _X_LABELS_INCHES = 0.45
@@ -118,19 +120,21 @@ def plot_known_and_unknown(
                 ax.set_ylabel("")
     shown = known.hypotheses[:1] + survivors
     handles = _legend_handles(_used_colors(colors, shown), _drawn_kinds(*drawn))
-    layout = _Layout(extent, rows, math.ceil(panels / rows), titles, len(handles))
+    legend = fig.legend(
+        handles=handles, loc="lower center", ncols=_LEGEND_COLUMNS, fontsize="small",
+        frameon=False,
+    )  # fmt: skip
+    legend_inches = legend.get_window_extent(fig.canvas.get_renderer()).height / fig.dpi
+    layout = _Layout(extent, rows, math.ceil(panels / rows), titles, legend_inches)
     fig.set_size_inches(layout.size)
     for ax, (row, column) in zip(axes, cells, strict=True):
         ax.set_position(layout.position(row, column))
+    legend.set_bbox_to_anchor((0.5, layout.inches_y(_PAD_INCHES)))
     if unknown is not None:
         fig.suptitle(
             "landmark ids known (left) and unknown: " + _suptitle(unknown, len(survivors)),
-            y=1 - layout.inches_y(0.08), va="top",
+            y=1 - layout.inches_y(_PAD_INCHES), va="top",
         )  # fmt: skip
-    fig.legend(
-        handles=handles, loc="lower center", bbox_to_anchor=(0.5, layout.inches_y(0.05)),
-        ncols=_LEGEND_COLUMNS, fontsize="small", frameon=False,
-    )  # fmt: skip
     return fig
 
 
@@ -154,7 +158,12 @@ class _Layout:
     plot of the scene's aspect ratio, its x labels), and a legend strip at the bottom."""
 
     def __init__(
-        self, extent: Extent, rows: int, survivor_columns: int, titles: list[str], entries: int
+        self,
+        extent: Extent,
+        rows: int,
+        survivor_columns: int,
+        titles: list[str],
+        legend_inches: float,
     ) -> None:
         dx, dy = extent[1] - extent[0], extent[3] - extent[2]
         margin = 0.05 * max(dx, dy)  # as _finish_axes pads the limits
@@ -163,8 +172,7 @@ class _Layout:
         self.title_h = _LINE_INCHES * (max(t.count("\n") for t in titles) + 1) + 0.1
         self.row_h = self.title_h + self.axes_h + _X_LABELS_INCHES
         self.top = 0.4  # the suptitle
-        legend_rows = math.ceil(entries / _LEGEND_COLUMNS)
-        self.bottom = _LINE_INCHES * 1.25 * legend_rows + 0.15
+        self.bottom = legend_inches + 2 * _PAD_INCHES
         self.lefts = [_Y_LABELS_INCHES]
         for column in range(1, survivor_columns + 1):
             gap = _Y_LABELS_INCHES + 0.15 if column == 1 else _GAP_INCHES
