@@ -1,16 +1,18 @@
 """The figure of ``cuikslam paper`` drawn in a second process while the command goes on.
 
-Importing Matplotlib takes about half a second of a warm ``cuikslam paper``. The figure
-(:func:`~cuikslam.results.figures.plot_known_and_unknown`) shows both parts of the
-command: the known-correspondence solve beside the survivors of the unknown-correspondence
-one. The command starts ``python -m cuikslam.cli.figure_job PATH`` first, which imports
-Matplotlib while the parent solves, then hands it each part's result as soon as it is
-solved (pickled, on its stdin); with the second, the child draws the whole figure (its
-layout fixed: one drawing pass) and saves it while the parent prints its tables, and the
-parent waits for it at the end. Drawing the first part's panel ahead, while the parent
-solves the second part, saved nothing measurable (the drawing pass is the cost, and it
-needs every panel). It is used only when a core looks free (:func:`spare_core`);
-otherwise, or where no process can be started, the figure is drawn in-process, at the end.
+The figure (:func:`~cuikslam.results.figures.plot_known_and_unknown`) shows both parts of
+the command: the known-correspondence solve beside the survivors of the
+unknown-correspondence one. The command starts ``python -m cuikslam.cli.figure_job PATH``
+first, which imports Matplotlib (about half a second) while the parent solves. The parent
+solves the unknown-correspondence part first and hands its result over (pickled, on the
+child's stdin); while the parent solves the known part, the child lays the figure out and
+draws every panel but the known one (:class:`~cuikslam.results.figures.
+KnownUnknownFigure`). When the known result comes, the child draws only its panel onto
+that canvas and writes the PNG, while the parent prints its tables; the parent waits for
+it at the end. (When the known panel changes the layout, or for a PDF or SVG, the child
+draws the whole figure again: the same figure, slower.) It is used only when a core looks
+free (:func:`spare_core`); otherwise, or where no process can be started, the figure is
+drawn in-process, at the end.
 """
 
 from __future__ import annotations
@@ -46,27 +48,28 @@ class FigureJob:
 
     path: str
     process: subprocess.Popen[bytes] | None
-    known: tuple[Solution, GroundTruth | None, list[int] | None] | None = None
-    unknown: Solution | None = None
+    unknown: tuple[Solution | None, GroundTruth | None, list[int] | None] | None = None
+    known: Solution | None = None
 
-    def send(
+    def send_unknown(
         self,
-        solution: Solution,
+        solution: Solution | None,
         truth: GroundTruth | None,
         observation_poses: list[int] | None = None,
     ) -> None:
-        """Hand over the known-correspondence result, its truth and the pose of each
-        observation (the child has been importing Matplotlib meanwhile).
+        """Hand over the unknown-correspondence result (None: none), the truth and the
+        pose of each observation, first: the child draws the survivors' panels while the
+        parent solves the known part.
 
         The payloads (a few kB for the seed's experiment) fit in the pipe's buffer, so
         sending does not wait for the child."""
-        self.known = (solution, truth, observation_poses)
-        self._write(self.known)
+        self.unknown = (solution, truth, observation_poses)
+        self._write(self.unknown)
 
-    def send_unknown(self, solution: Solution | None) -> None:
-        """Hand over the unknown-correspondence result (None: none), after :meth:`send`;
-        the child then draws and saves the whole figure."""
-        self.unknown = solution
+    def send_known(self, solution: Solution) -> None:
+        """Hand over the known-correspondence result, after :meth:`send_unknown`; the
+        child then draws its panel and saves the figure."""
+        self.known = solution
         self._write(solution)
         if self.process is not None and self.process.stdin is not None:
             self.process.stdin.close()
@@ -88,7 +91,8 @@ class FigureJob:
             self.process = None
 
     def finish(self) -> None:
-        """Wait for the figure to be written (after :meth:`send` and :meth:`send_unknown`).
+        """Wait for the figure to be written (after :meth:`send_unknown` and
+        :meth:`send_known`).
 
         Raises
         ------
@@ -98,8 +102,8 @@ class FigureJob:
             When drawing failed otherwise (a bug: the child's traceback is in the message).
         """
         if self.process is None:
-            assert self.known is not None, "send() first"
-            _draw_here(*self.known, self.unknown, self.path)
+            assert self.unknown is not None and self.known is not None, "send both first"
+            _draw_here(*self.unknown, self.known, self.path)
             return
         assert self.process.stderr is not None  # stdout is not read: no deadlock
         message = self.process.stderr.read().decode(errors="replace").strip()
@@ -110,27 +114,18 @@ class FigureJob:
             raise RuntimeError(f"drawing {self.path} failed:\n{message}")
 
 
-def _figure(
-    known: Solution,
-    truth: GroundTruth | None,
-    observation_poses: list[int] | None,
-    unknown: Solution | None,
-) -> Figure:
-    from cuikslam.results.figures import plot_known_and_unknown
-
-    return plot_known_and_unknown(known, unknown, truth, observation_poses=observation_poses)
-
-
 def _draw_here(
-    known: Solution,
+    unknown: Solution | None,
     truth: GroundTruth | None,
     observation_poses: list[int] | None,
-    unknown: Solution | None,
+    known: Solution,
     path: str,
 ) -> None:
-    from cuikslam.results.figures import save_figure
+    from cuikslam.results.figures import plot_known_and_unknown, save_figure
 
-    drawing = _figure(known, truth, observation_poses, unknown)
+    drawing = plot_known_and_unknown(
+        known, unknown, truth, observation_poses=observation_poses, dpi=PAPER_DPI
+    )
     write_output(path, lambda: save_figure(drawing, path, PAPER_DPI, tight=False))
 
 
@@ -144,7 +139,7 @@ def spare_core() -> bool:
 
 
 def start_figure(path: str, *, child: bool | None = None) -> FigureJob:
-    """Start a process that imports Matplotlib, then draws what :meth:`FigureJob.send` gives.
+    """Start a process that imports Matplotlib, then draws what :class:`FigureJob` sends.
 
     Parameters
     ----------
@@ -160,7 +155,7 @@ def start_figure(path: str, *, child: bool | None = None) -> FigureJob:
     Returns
     -------
     FigureJob
-        Call :meth:`~FigureJob.send`, :meth:`~FigureJob.send_unknown`, then
+        Call :meth:`~FigureJob.send_unknown`, :meth:`~FigureJob.send_known`, then
         :meth:`~FigureJob.finish` before reporting the figure written (or
         :meth:`~FigureJob.cancel`).
     """
@@ -182,24 +177,50 @@ def start_figure(path: str, *, child: bool | None = None) -> FigureJob:
 def _main(path: str) -> int:
     import matplotlib.pyplot  # noqa: F401  (imported while the parent solves)
 
-    from cuikslam.results.figures import save_figure
+    from cuikslam.results.figures import KnownUnknownFigure, plot_known_and_unknown, save_figure
 
     stream = sys.stdin.buffer
     try:
-        known = pickle.load(stream)
+        unknown, truth, observation_poses = pickle.load(stream)
     except EOFError:  # the parent stopped without sending anything
         return 0
+    png = path.lower().endswith(".png")
+    builder = None
+    if unknown is not None:  # every panel but the known one, while the parent solves it
+        builder = KnownUnknownFigure(
+            unknown, truth, observation_poses=observation_poses, dpi=PAPER_DPI
+        )
+        if png:
+            builder.figure.canvas.draw()
     try:
-        unknown = pickle.load(stream)
-    except EOFError:  # the parent stopped before the second part: no figure
+        known = pickle.load(stream)
+    except EOFError:  # the parent stopped before the known part: no figure
         return 0
-    drawing = _figure(*known, unknown)
     try:
-        save_figure(drawing, path, PAPER_DPI, tight=False)
+        if builder is None:
+            figure = plot_known_and_unknown(
+                known, None, truth, observation_poses=observation_poses, dpi=PAPER_DPI
+            )
+            save_figure(figure, path, PAPER_DPI, tight=False)
+        elif builder.add_known(known) and png:
+            builder.figure.draw_artist(builder.known_axes)  # onto the canvas drawn above
+            _write_drawn_png(builder.figure, path)
+        else:  # a vector format, or the known panel moved the rest: draw it all
+            save_figure(builder.figure, path, PAPER_DPI, tight=False)
     except OSError as err:
         print(err.strerror or err, file=sys.stderr)
         return _CANNOT_WRITE
     return 0
+
+
+def _write_drawn_png(figure: Figure, path: str) -> None:
+    """Write the canvas as drawn (no new drawing pass), atomically, as ``savefig`` would."""
+    from matplotlib.image import imsave
+
+    from cuikslam._atomic import atomic_open
+
+    with atomic_open(path, "wb") as stream:
+        imsave(stream, figure.canvas.buffer_rgba(), format="png", origin="upper", dpi=figure.dpi)
 
 
 if __name__ == "__main__":

@@ -64,7 +64,7 @@ from cuikslam.results.figures.geometry import (
     scene_extent,
     spread_labels,
 )
-from cuikslam.results.figures.known_unknown import plot_known_and_unknown
+from cuikslam.results.figures.known_unknown import KnownUnknownFigure, plot_known_and_unknown
 
 __all__ = [
     "DPI",
@@ -77,6 +77,7 @@ __all__ = [
     "WIDTH_BINS",
     "WIDTH_PANEL_POSES",
     "Extent",
+    "KnownUnknownFigure",
     "class_color_map",
     "drawn_poses",
     "plot_comparison_on_axes",

@@ -12,12 +12,13 @@ from typing import TYPE_CHECKING
 
 from cuikslam.results.figures.artists import _drawn_kinds, _legend_handles, class_color_map
 from cuikslam.results.figures.figure import (
+    DPI,
+    ENVELOPE_TITLE,
     _classes,
     _Panel,
     _panel_title,
     _solution_extent,
     _suptitle,
-    _union_extent,
     _used_colors,
 )
 from cuikslam.results.figures.geometry import Extent
@@ -29,7 +30,7 @@ if TYPE_CHECKING:
 
     from cuikslam.simulate.truth import GroundTruth
 
-__all__ = ["plot_known_and_unknown"]
+__all__ = ["KnownUnknownFigure", "plot_known_and_unknown"]
 
 AXES_INCHES = 3.2
 """The width of a panel's plot (its height follows the scene's aspect ratio)."""
@@ -54,21 +55,22 @@ def plot_known_and_unknown(
     *,
     observation_poses: Sequence[int] | None = None,
     max_hypotheses: int = 8,
+    dpi: float = DPI,
 ) -> Figure:
     """The known-correspondence solve beside the survivors of the unknown-correspondence one.
 
-    Panels share their axes limits: first ``known``'s best hypothesis, then each of
-    ``unknown``'s reported hypotheses (at most ``max_hypotheses``, best rank first) over
-    its envelope, or its envelope alone when it reports none (a search stopped on its
-    budget). Up to three survivors the panels make one row; beyond, the survivors make two
-    rows right of the known panel. Each survivor's title gives its rank, landmarks, status
-    and assignment (the landmark of each observation, in log order; the observations the
-    survivors assign differently in brackets, their sightings drawn in red). One legend
-    sits below the panels.
+    Panels share their axes limits (those of the survivors and the truth): first
+    ``known``'s best hypothesis, then each of ``unknown``'s reported hypotheses (at most
+    ``max_hypotheses``, best rank first) over its envelope, or its envelope alone when it
+    reports none (a search stopped on its budget). Up to three survivors the panels make
+    one row; beyond, the survivors make two rows right of the known panel. Each survivor's
+    title gives its rank, landmarks, status and assignment (the landmark of each
+    observation, in log order; the observations the survivors assign differently in
+    brackets, their sightings drawn in red). One legend sits below the panels.
 
-    The layout is fixed in inches (no layout engine: drawing it is one pass, which keeps
-    ``cuikslam paper``, which draws it while it solves, fast); save it with
-    ``save_figure(fig, path, tight=False)``.
+    The layout is fixed in inches (no layout engine: drawing it is one pass); save it with
+    ``save_figure(fig, path, tight=False)``. :class:`KnownUnknownFigure` builds the same
+    figure in two steps, the survivors first.
 
     Parameters
     ----------
@@ -82,67 +84,167 @@ def plot_known_and_unknown(
         The pose of each observation (log order): draws the sightings.
     max_hypotheses : int
         Survivor panels at most.
+    dpi : float
+        The figure's resolution: the layout measures the legend at it; save at the same.
 
     Returns
     -------
     matplotlib.figure.Figure
         Not shown; pass it to :func:`save_figure`.
     """
-    import matplotlib.pyplot as plt
-
-    if max_hypotheses < 1:
-        raise ValueError(f"max_hypotheses must be at least 1, got {max_hypotheses}")
-    survivors = [] if unknown is None else unknown.hypotheses[:max_hypotheses]
-    panels = 0 if unknown is None else max(len(survivors), 1)
-    rows = 1 if panels <= 3 else 2
-    extents = [_solution_extent(known.hypotheses[:1], None, truth)]
-    if unknown is not None:
-        extents.append(_solution_extent(survivors, unknown.envelope, truth))
-    extent = _union_extent(extents)
-    colors = class_color_map(_classes(known.hypotheses[:1] + survivors, truth))
-    marked = [] if unknown is None else ambiguous_observations(unknown)
-    titles = [_known_title(known)] + [
-        _survivor_title(k, len(unknown.hypotheses), h, marked) for k, h in enumerate(survivors)
-    ]
-    fig = plt.figure()
-    cells = [(0, 0)] + [(k % rows, 1 + k // rows) for k in range(panels)]
-    axes = [fig.add_axes((0, 0, 1, 1)) for _ in cells]  # placed below, once all is drawn
-
-    drawn = _Panel(known, truth, extent, colors, observation_poses).draw(
-        axes[0], known.best if known.hypotheses else None, titles[0]
-    )
-    if unknown is not None:
-        panel = _Panel(unknown, truth, extent, colors, observation_poses)
-        for k, ax in enumerate(axes[1:]):
-            drawn += panel.draw(ax, *((survivors[k], titles[1 + k]) if survivors else (None, None)))
-            if cells[1 + k][1] > 1:  # the first survivor column keeps its y tick labels
-                ax.tick_params(labelleft=False)
-                ax.set_ylabel("")
-    shown = known.hypotheses[:1] + survivors
-    handles = _legend_handles(_used_colors(colors, shown), _drawn_kinds(*drawn))
-    legend = fig.legend(
-        handles=handles, loc="lower center", ncols=_LEGEND_COLUMNS, fontsize="small",
-        frameon=False,
+    builder = KnownUnknownFigure(
+        unknown, truth, observation_poses=observation_poses, max_hypotheses=max_hypotheses,
+        known=known, dpi=dpi,
     )  # fmt: skip
-    legend_inches = legend.get_window_extent(fig.canvas.get_renderer()).height / fig.dpi
-    layout = _Layout(extent, rows, math.ceil(panels / rows), titles, legend_inches)
-    fig.set_size_inches(layout.size)
-    for ax, (row, column) in zip(axes, cells, strict=True):
-        ax.set_position(layout.position(row, column))
-    legend.set_bbox_to_anchor((0.5, layout.inches_y(_PAD_INCHES)))
-    if unknown is not None:
-        fig.suptitle(
-            "landmark ids known (left) and unknown: " + _suptitle(unknown, len(survivors)),
-            y=1 - layout.inches_y(_PAD_INCHES), va="top",
+    builder.add_known(known)
+    return builder.figure
+
+
+class KnownUnknownFigure:
+    """:func:`plot_known_and_unknown` in two steps: the survivors' panels, the legend and
+    the layout first, then :meth:`add_known` draws the known-correspondence panel into the
+    room left for it. A caller that gets the unknown-correspondence result first (as
+    ``cuikslam paper``'s drawing process does) can render the figure before the known
+    part is solved, then draw only the known panel onto that canvas.
+
+    Parameters
+    ----------
+    unknown : Solution or None
+        The log solved without landmark ids (None: the known panel alone; then ``known``
+        is needed).
+    truth : GroundTruth, optional
+        Drawn in every panel.
+    observation_poses : sequence of int, optional
+        The pose of each observation (log order): draws the sightings.
+    max_hypotheses : int
+        Survivor panels at most.
+    known : Solution, optional
+        The known-correspondence result, when at hand already: room is then made for its
+        title, its landmark classes get their colours, and (without ``unknown``) its
+        boxes set the limits.
+    dpi : float
+        The figure's resolution: the layout measures the legend at it; save at the same.
+
+    Attributes
+    ----------
+    figure : matplotlib.figure.Figure
+        The figure; its known panel is empty and hidden until :meth:`add_known`.
+    known_axes : matplotlib.axes.Axes
+        The known panel's axes.
+    """
+
+    def __init__(
+        self,
+        unknown: Solution | None,
+        truth: GroundTruth | None = None,
+        *,
+        observation_poses: Sequence[int] | None = None,
+        max_hypotheses: int = 8,
+        known: Solution | None = None,
+        dpi: float = DPI,
+    ) -> None:
+        import matplotlib.pyplot as plt
+
+        if max_hypotheses < 1:
+            raise ValueError(f"max_hypotheses must be at least 1, got {max_hypotheses}")
+        if unknown is None and known is None:
+            raise ValueError("give the unknown-correspondence result, or the known one")
+        self.unknown, self.truth, self.observation_poses = unknown, truth, observation_poses
+        self.survivors = [] if unknown is None else unknown.hypotheses[:max_hypotheses]
+        panels = 0 if unknown is None else max(len(self.survivors), 1)
+        self.rows = 1 if panels <= 3 else 2
+        self.columns = math.ceil(panels / self.rows)
+        ahead = [] if known is None else known.hypotheses[:1]
+        self.extent = (
+            _solution_extent(ahead, None, truth)
+            if unknown is None
+            else _solution_extent(self.survivors, unknown.envelope, truth)
+        )
+        self.colors = class_color_map(_classes(ahead + self.survivors, truth))
+        marked = [] if unknown is None else ambiguous_observations(unknown)
+        self.titles = [_known_title(known)] if known is not None else []
+        self.titles += [
+            _survivor_title(k, len(unknown.hypotheses), h, marked)
+            for k, h in enumerate(self.survivors)
+        ]
+
+        self.figure = fig = plt.figure(dpi=dpi)
+        self.cells = [(0, 0)] + [(k % self.rows, 1 + k // self.rows) for k in range(panels)]
+        self.known_axes = fig.add_axes((0, 0, 1, 1))  # placed once all is drawn
+        self.known_axes.set_visible(False)
+        self.drawn: list[dict] = []
+        if unknown is not None:
+            panel = _Panel(unknown, truth, self.extent, self.colors, observation_poses)
+            for k, (_, column) in enumerate(self.cells[1:]):
+                ax = fig.add_axes((0, 0, 1, 1))
+                ax.set_anchor("N")
+                hypothesis = self.survivors[k] if self.survivors else None
+                title = self.titles[-len(self.survivors) + k] if self.survivors else None
+                self.drawn += panel.draw(ax, hypothesis, title)
+                if column > 1:  # the first survivor column keeps its y tick labels
+                    ax.tick_params(labelleft=False)
+                    ax.set_ylabel("")
+            self.suptitle = fig.suptitle(
+                "landmark ids known (left) and unknown: " + _suptitle(unknown, len(self.survivors)),
+                va="top",
+            )
+            if not self.survivors:  # its envelope panel's title needs room too
+                self.titles.append(ENVELOPE_TITLE)
+        self.legend = None
+        self._arrange(ahead)
+
+    def add_known(self, known: Solution) -> bool:
+        """Draw the known-correspondence panel into its room, and show it.
+
+        Returns
+        -------
+        bool
+            True when the figure's layout and legend are as they were (a canvas drawn
+            before holds the rest of the figure: drawing :attr:`known_axes` onto it
+            completes it); False when the known panel changed them (a longer title, a
+            legend entry of its own): draw the whole figure again.
+        """
+        ax = self.known_axes
+        ax.set_visible(True)
+        ax.set_anchor("N")
+        title = _known_title(known)
+        before = len(self.legend.legend_handles), tuple(self.figure.get_size_inches())
+        drawn = _Panel(known, self.truth, self.extent, self.colors, self.observation_poses).draw(
+            ax, known.best if known.hypotheses else None, title
+        )
+        self.drawn += drawn
+        if title not in self.titles:
+            self.titles.insert(0, title)
+        self._arrange(known.hypotheses[:1])
+        return before == (len(self.legend.legend_handles), tuple(self.figure.get_size_inches()))
+
+    def _arrange(self, known_hypotheses: list[Hypothesis]) -> None:
+        """(Re)make the legend, then size the figure and place every panel and text."""
+        fig = self.figure
+        if self.legend is not None:
+            self.legend.remove()
+        shown = known_hypotheses + self.survivors
+        handles = _legend_handles(_used_colors(self.colors, shown), _drawn_kinds(*self.drawn))
+        self.legend = fig.legend(
+            handles=handles, loc="lower center", ncols=_LEGEND_COLUMNS, fontsize="small",
+            frameon=False,
         )  # fmt: skip
-    return fig
+        legend_inches = self.legend.get_window_extent(fig.canvas.get_renderer()).height / fig.dpi
+        titles = self.titles or [_known_title(None)]
+        layout = _Layout(self.extent, self.rows, self.columns, titles, legend_inches)
+        fig.set_size_inches(layout.size)
+        for ax, (row, column) in zip(fig.axes, self.cells, strict=True):
+            ax.set_position(layout.position(row, column))
+        self.legend.set_bbox_to_anchor((0.5, layout.inches_y(_PAD_INCHES)))
+        if self.unknown is not None:
+            self.suptitle.set_y(1 - layout.inches_y(_PAD_INCHES))
 
 
 _LEGEND_COLUMNS = 4
 
 
-def _known_title(known: Solution) -> str:
-    if not known.hypotheses:
+def _known_title(known: Solution | None) -> str:
+    if known is None or not known.hypotheses:
         return "landmark ids known\nno hypothesis"
     return "landmark ids known\n" + _panel_title(1, known.best, _TITLE_WIDTH)
 
