@@ -208,23 +208,28 @@ class KnownUnknownFigure:
         ax.set_visible(True)
         ax.set_anchor("N")
         title = _known_title(known)
-        before = len(self.legend.legend_handles), tuple(self.figure.get_size_inches())
-        drawn = _Panel(known, self.truth, self.extent, self.colors, self.observation_poses).draw(
-            ax, known.best if known.hypotheses else None, title
-        )
-        self.drawn += drawn
+        lines = max(t.count("\n") for t in self.titles) if self.titles else -1
+        self.drawn += _Panel(
+            known, self.truth, self.extent, self.colors, self.observation_poses
+        ).draw(ax, known.best if known.hypotheses else None, title)
         if title not in self.titles:
             self.titles.insert(0, title)
+        entries = len(self._handles(known.hypotheses[:1]))
+        if entries == len(self.legend.legend_handles) and title.count("\n") <= lines:
+            return True  # the legend and the layout stand: nothing else moves
         self._arrange(known.hypotheses[:1])
-        return before == (len(self.legend.legend_handles), tuple(self.figure.get_size_inches()))
+        return False
+
+    def _handles(self, known_hypotheses: list[Hypothesis]) -> list:
+        shown = known_hypotheses + self.survivors
+        return _legend_handles(_used_colors(self.colors, shown), _drawn_kinds(*self.drawn))
 
     def _arrange(self, known_hypotheses: list[Hypothesis]) -> None:
         """(Re)make the legend, then size the figure and place every panel and text."""
         fig = self.figure
         if self.legend is not None:
             self.legend.remove()
-        shown = known_hypotheses + self.survivors
-        handles = _legend_handles(_used_colors(self.colors, shown), _drawn_kinds(*self.drawn))
+        handles = self._handles(known_hypotheses)
         self.legend = fig.legend(
             handles=handles, loc="lower center", ncols=_LEGEND_COLUMNS, fontsize="small",
             frameon=False,
