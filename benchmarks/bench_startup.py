@@ -99,7 +99,7 @@ if FIGURE:
     t = time.perf_counter()
     import cuikslam.results.figures as figures
     stages["figure: import"] = time.perf_counter() - t
-    timed(figures, "plot_solution", "figure: draw (matplotlib imported)")
+    timed(figures, "plot_known_and_unknown", "figure: draw (matplotlib imported)")
     timed(figures, "save_figure", "figure: save")
     import cuikslam.cli.figure_job as figure_job
     timed(figure_job.FigureJob, "finish", "figure: waiting for the child")

@@ -109,8 +109,11 @@ def test_hypothesis_on_axes_draws_each_kind():
         "path": 1,
         "landmark_boxes": 2,
         "landmark_labels": 2,
+        "sightings": 0,  # no observation_poses given
+        "ambiguous_sightings": 0,
         "truth_poses": 1,
         "truth_headings": 1,
+        "truth_path": 0,  # every pose drawn: no thinned true path
         "truth_landmarks": 1,
         "legend": 1,
     }
@@ -323,7 +326,7 @@ def test_no_hypothesis_gives_a_message_panel():
     assert "no hypothesis survived" in fig.get_suptitle()
     assert "proven inconsistent" in fig.get_suptitle()
     texts = [t.get_text() for t in visible_axes(fig)[0].texts]
-    assert "no hypothesis to draw" in texts
+    assert texts == ["nothing to draw: the log was refuted"]
 
 
 def test_long_assignment_is_wrapped_and_shortened():

@@ -191,7 +191,7 @@ def cmd_plot(args: argparse.Namespace) -> int:
     check_figure_path(args.output)
     solution = read_result_file(args.result)
     truth = read_truth_file(args.truth) if args.truth else None
-    if not solution.hypotheses:
+    if not solution.hypotheses and solution.envelope is None:  # with one: the envelope alone
         raise CommandError(f"{args.result}: no hypothesis to plot ({no_hypothesis(solution)})")
     if truth is not None:
         check_truth_fits(truth, args.truth, solution, args.result, assignment_optional=True)

@@ -1,14 +1,18 @@
-"""A figure drawn in a second process while the command goes on.
+"""The figure of ``cuikslam paper`` drawn in a second process while the command goes on.
 
-Importing Matplotlib, drawing and saving a figure takes most of a second, about a quarter
-of a warm ``cuikslam paper``. The command starts ``python -m cuikslam.cli.figure_job PATH``
-first, which imports Matplotlib while the parent solves the known-correspondence part (no
-time budget binds there), then hands it that result (pickled, on its stdin); the child
-draws and saves while the parent starts the second part, and the parent waits for it at
-the end. The child is done before the second part's witness search, whose time budget
-binds, so it does not take that search's time. It is used only when a core looks free
-(:func:`spare_core`); otherwise, or where no process can be started, the figure is drawn
-in-process, as before.
+The figure (:func:`~cuikslam.results.figures.plot_known_and_unknown`) shows both parts of
+the command: the known-correspondence solve beside the survivors of the
+unknown-correspondence one. The command starts ``python -m cuikslam.cli.figure_job PATH``
+first, which imports Matplotlib (about half a second) while the parent solves. The parent
+solves the unknown-correspondence part first and hands its result over (pickled, on the
+child's stdin); while the parent solves the known part, the child lays the figure out and
+draws every panel but the known one (:class:`~cuikslam.results.figures.
+KnownUnknownFigure`). When the known result comes, the child draws only its panel onto
+that canvas and writes the PNG, while the parent prints its tables; the parent waits for
+it at the end. (When the known panel changes the layout, or for a PDF or SVG, the child
+draws the whole figure again: the same figure, slower.) It is used only when a core looks
+free (:func:`spare_core`); otherwise, or where no process can be started, the figure is
+drawn in-process, at the end.
 """
 
 from __future__ import annotations
@@ -23,6 +27,8 @@ from typing import TYPE_CHECKING
 from cuikslam.cli._common import CommandError, write_output
 
 if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
     from cuikslam.results.solution import Solution
     from cuikslam.simulate.truth import GroundTruth
 
@@ -30,6 +36,10 @@ __all__ = ["FigureJob", "spare_core", "start_figure"]
 
 _CANNOT_WRITE = 3
 """The child's exit status when the figure file could not be written (an OSError)."""
+PAPER_DPI = 150
+"""Pixels per inch of the figure: it is 11 inches wide with two survivors (1,680 pixels,
+240 per inch at a page's 7 inches); drawing it at the library's 200 would add a fifth to
+the drawing the command waits for."""
 
 
 @dataclass
@@ -38,19 +48,38 @@ class FigureJob:
 
     path: str
     process: subprocess.Popen[bytes] | None
-    drawn: tuple[Solution, GroundTruth | None] | None = None
+    unknown: tuple[Solution | None, GroundTruth | None, list[int] | None] | None = None
+    known: Solution | None = None
 
-    def send(self, solution: Solution, truth: GroundTruth | None) -> None:
-        """Hand over what to draw (the child has been importing Matplotlib meanwhile).
+    def send_unknown(
+        self,
+        solution: Solution | None,
+        truth: GroundTruth | None,
+        observation_poses: list[int] | None = None,
+    ) -> None:
+        """Hand over the unknown-correspondence result (None: none), the truth and the
+        pose of each observation, first: the child draws the survivors' panels while the
+        parent solves the known part.
 
-        The payload (a few kB for the seed's experiment) fits in the pipe's buffer, so this
-        does not wait for the child."""
-        self.drawn = (solution, truth)
+        The payloads (a few kB for the seed's experiment) fit in the pipe's buffer, so
+        sending does not wait for the child."""
+        self.unknown = (solution, truth, observation_poses)
+        self._write(self.unknown)
+
+    def send_known(self, solution: Solution) -> None:
+        """Hand over the known-correspondence result, after :meth:`send_unknown`; the
+        child then draws its panel and saves the figure."""
+        self.known = solution
+        self._write(solution)
+        if self.process is not None and self.process.stdin is not None:
+            self.process.stdin.close()
+
+    def _write(self, payload: object) -> None:
         if self.process is not None:
             assert self.process.stdin is not None
             try:
-                self.process.stdin.write(pickle.dumps((solution, truth)))
-                self.process.stdin.close()
+                self.process.stdin.write(pickle.dumps(payload))
+                self.process.stdin.flush()
             except OSError:  # the child died: draw here
                 self.cancel()
 
@@ -62,7 +91,8 @@ class FigureJob:
             self.process = None
 
     def finish(self) -> None:
-        """Wait for the figure to be written (after :meth:`send`).
+        """Wait for the figure to be written (after :meth:`send_unknown` and
+        :meth:`send_known`).
 
         Raises
         ------
@@ -72,8 +102,8 @@ class FigureJob:
             When drawing failed otherwise (a bug: the child's traceback is in the message).
         """
         if self.process is None:
-            assert self.drawn is not None, "send() first"
-            _draw_here(*self.drawn, self.path)
+            assert self.unknown is not None and self.known is not None, "send both first"
+            _draw_here(*self.unknown, self.known, self.path)
             return
         assert self.process.stderr is not None  # stdout is not read: no deadlock
         message = self.process.stderr.read().decode(errors="replace").strip()
@@ -84,11 +114,19 @@ class FigureJob:
             raise RuntimeError(f"drawing {self.path} failed:\n{message}")
 
 
-def _draw_here(solution: Solution, truth: GroundTruth | None, path: str) -> None:
-    from cuikslam.results.figures import plot_solution, save_figure
+def _draw_here(
+    unknown: Solution | None,
+    truth: GroundTruth | None,
+    observation_poses: list[int] | None,
+    known: Solution,
+    path: str,
+) -> None:
+    from cuikslam.results.figures import plot_known_and_unknown, save_figure
 
-    drawing = plot_solution(solution, truth)
-    write_output(path, lambda: save_figure(drawing, path))
+    drawing = plot_known_and_unknown(
+        known, unknown, truth, observation_poses=observation_poses, dpi=PAPER_DPI
+    )
+    write_output(path, lambda: save_figure(drawing, path, PAPER_DPI, tight=False))
 
 
 def spare_core() -> bool:
@@ -101,7 +139,7 @@ def spare_core() -> bool:
 
 
 def start_figure(path: str, *, child: bool | None = None) -> FigureJob:
-    """Start a process that imports Matplotlib, then draws what :meth:`FigureJob.send` gives.
+    """Start a process that imports Matplotlib, then draws what :class:`FigureJob` sends.
 
     Parameters
     ----------
@@ -117,8 +155,9 @@ def start_figure(path: str, *, child: bool | None = None) -> FigureJob:
     Returns
     -------
     FigureJob
-        Call :meth:`~FigureJob.send`, then :meth:`~FigureJob.finish` before reporting the
-        figure written (or :meth:`~FigureJob.cancel`).
+        Call :meth:`~FigureJob.send_unknown`, :meth:`~FigureJob.send_known`, then
+        :meth:`~FigureJob.finish` before reporting the figure written (or
+        :meth:`~FigureJob.cancel`).
     """
     path = os.fspath(path)
     if not (spare_core() if child is None else child):
@@ -138,19 +177,50 @@ def start_figure(path: str, *, child: bool | None = None) -> FigureJob:
 def _main(path: str) -> int:
     import matplotlib.pyplot  # noqa: F401  (imported while the parent solves)
 
-    from cuikslam.results.figures import plot_solution, save_figure
+    from cuikslam.results.figures import KnownUnknownFigure, plot_known_and_unknown, save_figure
 
-    payload = sys.stdin.buffer.read()
-    if not payload:  # the parent stopped without sending anything
-        return 0
-    solution, truth = pickle.loads(payload)
-    drawing = plot_solution(solution, truth)
+    stream = sys.stdin.buffer
     try:
-        save_figure(drawing, path)
+        unknown, truth, observation_poses = pickle.load(stream)
+    except EOFError:  # the parent stopped without sending anything
+        return 0
+    png = path.lower().endswith(".png")
+    builder = None
+    if unknown is not None:  # every panel but the known one, while the parent solves it
+        builder = KnownUnknownFigure(
+            unknown, truth, observation_poses=observation_poses, dpi=PAPER_DPI
+        )
+        if png:
+            builder.figure.canvas.draw()
+    try:
+        known = pickle.load(stream)
+    except EOFError:  # the parent stopped before the known part: no figure
+        return 0
+    try:
+        if builder is None:
+            figure = plot_known_and_unknown(
+                known, None, truth, observation_poses=observation_poses, dpi=PAPER_DPI
+            )
+            save_figure(figure, path, PAPER_DPI, tight=False)
+        elif builder.add_known(known) and png:
+            builder.figure.draw_artist(builder.known_axes)  # onto the canvas drawn above
+            _write_drawn_png(builder.figure, path)
+        else:  # a vector format, or the known panel moved the rest: draw it all
+            save_figure(builder.figure, path, PAPER_DPI, tight=False)
     except OSError as err:
         print(err.strerror or err, file=sys.stderr)
         return _CANNOT_WRITE
     return 0
+
+
+def _write_drawn_png(figure: Figure, path: str) -> None:
+    """Write the canvas as drawn (no new drawing pass), atomically, as ``savefig`` would."""
+    from matplotlib.image import imsave
+
+    from cuikslam._atomic import atomic_open
+
+    with atomic_open(path, "wb") as stream:
+        imsave(stream, figure.canvas.buffer_rgba(), format="png", origin="upper", dpi=figure.dpi)
 
 
 if __name__ == "__main__":

@@ -37,6 +37,7 @@ __all__ = [
     "TruthVerdict",
     "envelope_report",
     "named_landmarks",
+    "paired_landmarks",
     "partition",
     "rank_of",
     "true_outliers",
@@ -100,6 +101,59 @@ def display_names(assignment: Sequence[str], named: Collection[str]) -> list[str
         if a not in named and a != OUTLIER and a not in names:
             names[a] = next(fresh)
     return [names.get(a, a) for a in assignment]
+
+
+def paired_landmarks(hypothesis: Hypothesis, truth: GroundTruth) -> dict[str, list[str]]:
+    """The true landmarks each landmark of ``hypothesis`` stands for.
+
+    Paired through the association: a landmark of the hypothesis stands for the true
+    landmark of every observation the hypothesis assigns to it, whatever the two name
+    them (an unknown-correspondence solve names its landmarks in order of first sighting).
+    A wrong hypothesis may pair one of its landmarks with several true ones, or with
+    ``"outlier"`` (an observation the truth says is an outlier). Without a true assignment
+    of the same length, landmarks are paired by name.
+
+    Parameters
+    ----------
+    hypothesis : Hypothesis
+        Its ``assignment`` and ``landmark_ids`` are used.
+    truth : GroundTruth
+        Its ``assignment`` (the true landmark of each observation) and ``landmark_ids``.
+
+    Returns
+    -------
+    dict[str, list[str]]
+        Each of the hypothesis' landmark ids that is paired, to its true landmark ids
+        (in the truth's order, ``"outlier"`` last). An observation the hypothesis takes as
+        an outlier pairs with nothing.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> h = Hypothesis(["L1", "L2", "L1"], [0], np.zeros((1, 3, 2)), ["L1", "L2"],
+    ...                ["post", "post"], np.zeros((2, 2, 2)))
+    >>> t = GroundTruth(np.zeros((1, 3)), [0], np.zeros((3, 2)), ["L13", "L15", "L1"],
+    ...                 ["post"] * 3, ["L13", "L15", "L13"])
+    >>> paired_landmarks(h, t)
+    {'L1': ['L13'], 'L2': ['L15']}
+    >>> paired_landmarks(h, GroundTruth(t.poses_xyt, [0], t.landmarks_xy, t.landmark_ids,
+    ...                                 t.landmark_classes, []))  # no true assignment
+    {'L1': ['L1']}
+    """
+    ids = set(hypothesis.landmark_ids)
+    order = {lid: j for j, lid in enumerate(truth.landmark_ids)}
+    if len(truth.assignment) != len(hypothesis.assignment) or not truth.assignment:
+        return {lid: [lid] for lid in hypothesis.landmark_ids if lid in order}
+    order[OUTLIER] = len(order)
+    pairs: dict[str, set[str]] = {}
+    for ours, theirs in zip(hypothesis.assignment, truth.assignment, strict=True):
+        if ours in ids and theirs in order:
+            pairs.setdefault(ours, set()).add(theirs)
+    return {
+        lid: sorted(pairs[lid], key=order.__getitem__)
+        for lid in hypothesis.landmark_ids
+        if lid in pairs
+    }
 
 
 def named_landmarks(log: Log) -> set[str]:

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from cuikslam.results.association import rank_of
+from cuikslam.results.association import paired_landmarks, rank_of
 from cuikslam.results.solution import OUTLIER, Hypothesis, Solution, _check_pose, _check_xy
 from cuikslam.results.summary import _follows
 from cuikslam.simulate.truth import GroundTruth
@@ -190,18 +190,13 @@ def _landmark_truth(
 ) -> dict[str, str | None]:
     """Each landmark of ``h`` → the true landmark it is, or None when that is not one
     (a wrong hypothesis merging several) or unknown."""
-    seen: dict[str, set[str]] = {}
-    if len(truth.assignment) == len(h.assignment):
-        for ours, theirs in zip(h.assignment, truth.assignment, strict=True):
-            seen.setdefault(ours, set()).add(theirs)
+    pairs = paired_landmarks(h, truth)  # by id for a truth without assignment
     known = set(truth.landmark_ids)
     out: dict[str, str | None] = {}
     for m in h.landmark_ids:
-        ids = seen.get(m, set())
+        ids = set(pairs.get(m, ()))
         if m in named and m in known:
-            ids = ids | {m}
-        elif not ids and not truth.assignment and m in known:
-            ids = {m}  # a truth without assignment: landmarks are matched by id
+            ids.add(m)
         out[m] = next(iter(ids)) if len(ids) == 1 else None
     return out
 

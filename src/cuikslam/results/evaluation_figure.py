@@ -7,7 +7,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cuikslam.results.evaluate import Evaluation
-from cuikslam.results.figures import POSE_COLOR, TRUTH_COLOR, scene_extent
+from cuikslam.results.figures import class_color_map, plot_widths_on_axes
+from cuikslam.results.figures.artists import (
+    _drawn_kinds,
+    _legend_above,
+    _legend_handles,
+    _place_legend,
+)
+from cuikslam.results.figures.figure import _Panel, _solution_extent
 from cuikslam.results.solution import Solution
 from cuikslam.simulate.truth import GroundTruth
 
@@ -17,101 +24,61 @@ if TYPE_CHECKING:
 __all__ = ["plot_evaluation"]
 
 MISS_COLOR = "tab:red"
-
-
-def _box_polygons(xy: np.ndarray) -> np.ndarray:
-    """(n, 2, 2) x/y boxes as (n, 4, 2) rectangle corners (finite boxes only)."""
-    (x0, x1), (y0, y1) = xy[:, 0].T, xy[:, 1].T
-    return np.stack([np.column_stack(c) for c in ((x0, y0), (x1, y0), (x1, y1), (x0, y1))], axis=1)
+MAX_MISS_LINES = 200
+"""Poses whose truth misses its box marked on the widths panel at most."""
 
 
 def plot_evaluation(solution: Solution, truth: GroundTruth, ev: Evaluation) -> Figure:
-    """Left: the evaluated hypothesis' pose and landmark boxes, the true trajectory and
-    landmarks, and the poses whose truth misses its box (red). Right: the pose box widths
-    (x, y; θ on its own axis) along the run, with the poses that lacked truth shaded.
+    """Left: the evaluated hypothesis as :func:`~cuikslam.results.figures.plot_solution`
+    draws it (over the envelope, with unknown correspondence; on a long run every k-th
+    pose box, the true path through every true pose), and the true poses that miss their
+    box (red, all of them). Right: the pose box widths
+    (x, y; θ on its own axis) along the run, the poses without truth shaded and those whose
+    truth misses its box marked. Legends sit outside the plots.
 
     The figure is not shown; pass it to :func:`cuikslam.results.figures.save_figure`.
     """
     import matplotlib.pyplot as plt
-    from matplotlib.collections import PolyCollection
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
 
     h = solution.hypotheses[ev.evaluated_rank - 1]
     fig, (ax, aw) = plt.subplots(
-        1, 2, figsize=(13, 5.5), layout="constrained", width_ratios=(1.1, 1)
+        1, 2, figsize=(13, 5.5), layout="constrained", width_ratios=(1.25, 1)
     )
-
-    finite = np.isfinite(h.poses[:, :2]).all(axis=(1, 2))
-    ax.add_collection(
-        PolyCollection(
-            _box_polygons(h.poses[finite, :2]),
-            facecolors="none",
-            edgecolors=POSE_COLOR,
-            linewidths=0.4,
-            alpha=0.6,
-            label="pose boxes",
-        )
+    title = (
+        f"hypothesis {ev.evaluated_rank}: {ev.poses_inside} of {ev.poses_with_truth} poses "
+        f"with truth inside ({ev.poses_without_truth} without truth)"
     )
-    marks = h.landmarks[np.isfinite(h.landmarks).all(axis=(1, 2))]
-    if len(marks):
-        ax.add_collection(
-            PolyCollection(
-                _box_polygons(marks),
-                facecolors="tab:orange",
-                edgecolors="tab:orange",
-                alpha=0.35,
-                label="landmark boxes",
-            )
-        )
+    colors = class_color_map(h.landmark_classes)
+    extent = _solution_extent([h], solution.envelope, truth)
+    drawn = _Panel(solution, truth, extent, colors).draw(ax, h, title)
     order = {p: i for i, p in enumerate(truth.pose_ids)}
-    rows = [order[p] for p in h.pose_ids if p in order]
-    path = truth.poses_xyt[rows] if rows else np.zeros((0, 3))
-    ax.plot(path[:, 0], path[:, 1], ".", color=TRUTH_COLOR, markersize=1.5, label="true poses")
-    if len(truth.landmarks_xy):
-        ax.plot(
-            truth.landmarks_xy[:, 0],
-            truth.landmarks_xy[:, 1],
-            "x",
-            color=TRUTH_COLOR,
-            markersize=6,
-            label="true landmarks",
-        )
     missed = [order[p] for p, ok in zip(ev.pose_ids, ev.pose_inside, strict=True) if ok is False]
+    handles = _legend_handles(colors, _drawn_kinds(*drawn))
     if missed:
         pts = truth.poses_xyt[missed]
-        ax.plot(pts[:, 0], pts[:, 1], "o", color=MISS_COLOR, markersize=4, label="truth outside")
-    extent = scene_extent([h.poses[finite], marks], [path[:, :2], truth.landmarks_xy])
-    ax.set_xlim(extent[0], extent[1])
-    ax.set_ylim(extent[2], extent[3])
-    ax.set_aspect("equal", adjustable="box")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.grid(True, linewidth=0.4, alpha=0.4)
-    ax.legend(fontsize="small", loc="best")
-    ax.set_title(
-        f"hypothesis {ev.evaluated_rank}: {ev.poses_inside} of {ev.poses_with_truth} poses "
-        f"with truth inside ({ev.poses_without_truth} without truth)",
-        fontsize="small",
-    )
+        ax.plot(pts[:, 0], pts[:, 1], "o", color=MISS_COLOR, markersize=4, zorder=8)
+        handles.append(
+            Line2D([], [], color=MISS_COLOR, marker="o", linestyle="none", markersize=4,
+                   label="true pose outside its box")
+        )  # fmt: skip
+    _place_legend(ax, handles)
 
+    lines = plot_widths_on_axes(aw, h)["lines"]
     index = np.arange(len(ev.pose_ids))
-    aw.plot(index, ev.pose_widths[:, 0], lw=0.8, label="x width [m]")
-    aw.plot(index, ev.pose_widths[:, 1], lw=0.8, label="y width [m]")
-    at = aw.twinx()
-    at.plot(index, ev.pose_widths[:, 2], lw=0.8, color="tab:green", label="θ width [rad]")
-    at.set_ylabel("θ width [rad]")
+    extra = []
     without = np.array([v is None for v in ev.pose_inside])
     if without.any():
         aw.fill_between(
             index, 0, 1, where=without, transform=aw.get_xaxis_transform(),
-            color="0.85", step="mid", label="no truth",
+            color="0.85", step="mid", zorder=0,
         )  # fmt: skip
+        extra.append(Patch(color="0.85", label="no truth"))
     bad = [i for i, v in enumerate(ev.pose_inside) if v is False]
-    for i in bad[:200]:
+    for i in bad[:MAX_MISS_LINES]:
         aw.axvline(i, color=MISS_COLOR, lw=0.5, alpha=0.6)
-    aw.set_xlabel("pose (in log order)")
-    aw.set_ylabel("width [m]")
-    aw.grid(True, linewidth=0.4, alpha=0.4)
-    handles = aw.get_legend_handles_labels()[0] + at.get_legend_handles_labels()[0]
-    aw.legend(handles=handles, fontsize="small", loc="upper left")
-    aw.set_title("box widths along the run", fontsize="small")
+    if bad:
+        extra.append(Line2D([], [], color=MISS_COLOR, lw=0.5, label="truth outside"))
+    _legend_above(aw, lines + extra, "box widths along the run")
     return fig

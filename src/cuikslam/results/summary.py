@@ -15,11 +15,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cuikslam.results.solution import OUTLIER
+from cuikslam.results.solution import OUTLIER, Solution
 
 __all__ = [
     "Ambiguity",
     "CorrespondenceSummary",
+    "ambiguous_observations",
     "describe",
     "summarize",
     "summary_holds",
@@ -244,3 +245,23 @@ def describe(
         f"{scope}{certain} of {n} observations are associated for certain; "
         f"{ambiguous}{how}{outliers}"
     )
+
+
+def ambiguous_observations(solution: Solution) -> list[int]:
+    """The observations (indices in log order) that the survivors of ``solution`` assign
+    differently: from its ``correspondence`` summary when it has one (it covers every
+    survivor the search kept), else from the reported hypotheses' assignments (landmark
+    ids taken as anonymous). Empty for known correspondence.
+
+    Examples
+    --------
+    >>> from cuikslam.results.solution import Solution
+    >>> ambiguous_observations(Solution([], correspondence={"certain": [True, False, True]}))
+    [1]
+    """
+    certain = (solution.correspondence or {}).get("certain")
+    if certain is None:
+        if len(solution.hypotheses) < 2:
+            return []
+        certain = summarize([h.assignment for h in solution.hypotheses]).certain
+    return [i for i, c in enumerate(certain) if not c]

@@ -339,8 +339,9 @@ def check_truth_fits(
     truth_path : str or PathLike
         The truth file, for the message.
     against : Log or Solution
-        The log; or, when the log is not at hand, a result of it (its best hypothesis gives
-        the poses and observations; the landmarks the log names are then unknown).
+        The log; or, when the log is not at hand, a result of it (its best hypothesis, or
+        without one its envelope, gives the poses and observations; the landmarks the log
+        names are then unknown).
     against_path : str or PathLike, optional
         The file ``against`` was read from (default: the log's ``path``; give the result's).
     assignment_optional : bool
@@ -354,9 +355,13 @@ def check_truth_fits(
     if isinstance(against, Log):
         named = {m for r in against.records if (m := getattr(r, "landmark", None)) is not None}
         facts, other = (against.pose_ids, len(against.observations), named), "the log"
-    else:
+    elif against.hypotheses:
         best = against.best
         facts, other = (best.pose_ids, len(best.assignment)), "the result"
+    else:  # a search stopped before its first hypothesis: its envelope has the same facts
+        envelope = against.envelope
+        assert envelope is not None, "a result with neither hypothesis nor envelope"
+        facts, other = (envelope.pose_ids, len(envelope.observations)), "the result"
     misfit = truth_misfit(truth, *facts, assignment_optional=assignment_optional)
     if misfit:
         name = against_path if against_path is not None else getattr(against, "path", other)

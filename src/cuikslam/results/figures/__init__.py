@@ -5,8 +5,9 @@ Two layers, as in GTSAM's ``gtsam.utils.plot``:
 * ``*_on_axes`` functions (:mod:`.axes`) draw into a Matplotlib ``Axes`` you own, so you
   can compose them with your own plots (and with Codac or GTSAM figures);
 * :func:`plot_solution` (:mod:`.figure`) builds a whole figure (one panel, or small
-  multiples when several hypotheses survive), and :func:`save_figure` writes it
-  atomically.
+  multiples when several hypotheses survive), :func:`plot_known_and_unknown`
+  (:mod:`.known_unknown`) a log solved with and without its landmark ids side by side
+  (``cuikslam paper``'s figure), and :func:`save_figure` writes either atomically.
 
 Under them, :mod:`.geometry` holds what needs no Matplotlib (extents, clipping, which
 boxes a long run draws, widths) and :mod:`.artists` the drawing primitives (colours,
@@ -25,46 +26,68 @@ Drawing conventions
 * Landmark boxes are filled rectangles coloured by landmark class.
 * Unbounded (±inf) bounds are clipped to the scene extent and the box is drawn dashed.
 * The truth, when given, is drawn as black dots with a short heading tick (poses) and
-  black crosses (landmarks); only poses and landmarks whose ids the hypothesis has are
-  drawn, since a wrong hypothesis may use the same landmark ids for other landmarks.
+  black crosses (landmarks): the poses the hypothesis has, and the true landmarks its
+  landmarks stand for, paired through the association (an unknown-correspondence
+  hypothesis names its landmarks in order of first sighting, whatever the truth calls
+  them). On a long run only the poses whose boxes are drawn get a dot and a tick; a thin
+  line, the true path, runs through all of them.
+* The envelope of an unknown-correspondence result (boxes that hold the truth whatever the
+  correspondence, even when the search stopped on its budget) is drawn as light grey
+  outlines under the hypotheses (:func:`plot_envelope_on_axes`), or alone, with where each
+  sighted landmark lies, when the result has no hypothesis.
+* Given the pose of each observation, the sightings (the kinematic graph's observation
+  edges) are drawn as thin grey lines, in red where the survivors of a search disagree.
+* Legends sit outside the plots; PNGs are written at :data:`DPI` (200) pixels per inch.
 """
 
 from cuikslam.results.figures.artists import (
+    ENVELOPE_COLOR,
     FAN_RADIUS,
     POSE_COLOR,
     TRUTH_COLOR,
     class_color_map,
 )
 from cuikslam.results.figures.axes import (
+    MAX_SIGHTINGS,
     WIDTH_BINS,
     plot_comparison_on_axes,
     plot_hypothesis_on_axes,
     plot_widths_on_axes,
 )
-from cuikslam.results.figures.figure import WIDTH_PANEL_POSES, plot_solution, save_figure
+from cuikslam.results.figures.envelope import plot_envelope_on_axes
+from cuikslam.results.figures.figure import DPI, WIDTH_PANEL_POSES, plot_solution, save_figure
 from cuikslam.results.figures.geometry import (
     MAX_POSE_BOXES,
     Extent,
     drawn_poses,
     pose_widths,
     scene_extent,
+    spread_labels,
 )
+from cuikslam.results.figures.known_unknown import KnownUnknownFigure, plot_known_and_unknown
 
 __all__ = [
+    "DPI",
+    "ENVELOPE_COLOR",
     "FAN_RADIUS",
     "MAX_POSE_BOXES",
+    "MAX_SIGHTINGS",
     "POSE_COLOR",
     "TRUTH_COLOR",
     "WIDTH_BINS",
     "WIDTH_PANEL_POSES",
     "Extent",
+    "KnownUnknownFigure",
     "class_color_map",
     "drawn_poses",
     "plot_comparison_on_axes",
+    "plot_envelope_on_axes",
     "plot_hypothesis_on_axes",
+    "plot_known_and_unknown",
     "plot_solution",
     "plot_widths_on_axes",
     "pose_widths",
     "save_figure",
     "scene_extent",
+    "spread_labels",
 ]

@@ -3,7 +3,7 @@ rectangles (dashed when clipped), the truth's markers, legends, the finish of an
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -15,10 +15,15 @@ if TYPE_CHECKING:
 
     from cuikslam.simulate.truth import GroundTruth
 
-__all__ = ["FAN_RADIUS", "POSE_COLOR", "TRUTH_COLOR", "class_color_map"]
+__all__ = ["ENVELOPE_COLOR", "FAN_RADIUS", "POSE_COLOR", "TRUTH_COLOR", "class_color_map"]
 
 POSE_COLOR = "tab:blue"
 TRUTH_COLOR = "black"
+ENVELOPE_COLOR = "0.6"
+"""The envelope's outlines (boxes that hold the truth whatever the correspondence)."""
+ENVELOPE_WIDTH = 0.7
+SIGHTING_COLOR = "0.55"
+AMBIGUOUS_COLOR = "tab:red"
 FAN_RADIUS = 0.05
 """Heading-fan radius as a fraction of the scene extent (the larger side)."""
 
@@ -70,15 +75,32 @@ def _draw_truth(
     truth: GroundTruth,
     tick: float,
     pose_ids: Sequence[int] | None,
-    landmark_ids: Sequence[str] | None,
+    landmark_rows: Sequence[int] | None,
+    ticked: Collection[int] | None = None,
 ) -> dict[str, list]:
-    """Truth poses (dots + heading ticks) and landmarks (crosses), filtered by id."""
+    """Truth poses (dots + heading ticks) and landmarks (crosses).
+
+    ``pose_ids`` and ``landmark_rows`` (rows of ``truth.landmarks_xy``) select what is
+    drawn (None: all). With ``ticked``, only those poses get a dot and a tick (the poses
+    whose boxes are drawn), and a thin line (the true path) runs through all of them.
+    """
     from matplotlib.collections import LineCollection
 
-    artists: dict[str, list] = {"truth_poses": [], "truth_headings": [], "truth_landmarks": []}
+    artists: dict[str, list] = {
+        "truth_poses": [],
+        "truth_headings": [],
+        "truth_path": [],
+        "truth_landmarks": [],
+    }
     poses = np.asarray(truth.poses_xyt, dtype=float).reshape(-1, 3)
     keep = [i for i, pid in enumerate(truth.pose_ids) if pose_ids is None or pid in pose_ids]
-    poses = poses[keep]
+    dotted = [i for i in keep if ticked is None or truth.pose_ids[i] in ticked]
+    if len(dotted) < len(keep):
+        (line,) = ax.plot(
+            poses[keep, 0], poses[keep, 1], color=TRUTH_COLOR, linewidth=0.6, alpha=0.6, zorder=5
+        )
+        artists["truth_path"].append(line)
+    poses = poses[dotted]
     if len(poses):
         (dots,) = ax.plot(
             poses[:, 0],
@@ -97,10 +119,8 @@ def _draw_truth(
         artists["truth_poses"].append(dots)
         artists["truth_headings"].append(ticks)
     landmarks = np.asarray(truth.landmarks_xy, dtype=float).reshape(-1, 2)
-    keep = [
-        j for j, lid in enumerate(truth.landmark_ids) if landmark_ids is None or lid in landmark_ids
-    ]
-    landmarks = landmarks[keep]
+    if landmark_rows is not None:
+        landmarks = landmarks[list(landmark_rows)]
     if len(landmarks):
         (crosses,) = ax.plot(
             landmarks[:, 0],
@@ -116,16 +136,45 @@ def _draw_truth(
     return artists
 
 
-def _truth_handles(poses: bool, landmarks: bool) -> list:
-    """Legend entries for the truth markers that were drawn."""
+def _draw_sightings(
+    ax: Axes,
+    segments: np.ndarray,
+    highlight: np.ndarray,
+) -> dict[str, list]:
+    """The kinematic graph's observation edges: ``segments`` (k, 2, 2) from a pose to the
+    landmark it sees, thin; those where ``highlight`` (k,) is true in the ambiguity colour."""
+    from matplotlib.collections import LineCollection
+
+    artists: dict[str, list] = {"sightings": [], "ambiguous_sightings": []}
+    if len(segments) and not highlight.all():
+        plain = LineCollection(
+            segments[~highlight], colors=SIGHTING_COLOR, linewidths=0.6, alpha=0.7, zorder=2.5
+        )
+        ax.add_collection(plain)
+        artists["sightings"].append(plain)
+    if highlight.any():
+        strong = LineCollection(
+            segments[highlight], colors=AMBIGUOUS_COLOR, linewidths=1.4, zorder=4.5
+        )
+        ax.add_collection(strong)
+        artists["ambiguous_sightings"].append(strong)
+    return artists
+
+
+def _truth_handles(kinds: Collection[str]) -> list:
+    """Legend entries for the truth markers that were drawn (``kinds``: artist kinds)."""
     from matplotlib.lines import Line2D
 
     handles = []
-    if poses:
+    if "truth_poses" in kinds:
         handles.append(
             Line2D([], [], color=TRUTH_COLOR, marker="o", markersize=3, label="true pose")
         )
-    if landmarks:
+    if "truth_path" in kinds:
+        handles.append(
+            Line2D([], [], color=TRUTH_COLOR, linewidth=0.6, alpha=0.6, label="true path")
+        )
+    if "truth_landmarks" in kinds:
         handles.append(
             Line2D([], [], color=TRUTH_COLOR, marker="x", linestyle="none", markersize=6,
                    markeredgewidth=1.5, label="true landmark")
@@ -133,15 +182,19 @@ def _truth_handles(poses: bool, landmarks: bool) -> list:
     return handles
 
 
-def _legend_handles(
-    colors: dict[str, Any],
-    *,
-    poses: bool,
-    fans: bool,
-    unbounded: bool,
-    truth_poses: bool,
-    truth_landmarks: bool,
-) -> list:
+def _drawn_kinds(*drawn: dict[str, list]) -> set[str]:
+    """The artist kinds that some of the ``drawn`` dicts hold an artist of, plus
+    ``"unbounded"`` when a box was clipped (drawn dashed)."""
+    kinds = {kind for d in drawn for kind, artists in d.items() if artists}
+    boxes = ("pose_boxes", "landmark_boxes", "envelope_poses", "envelope_landmarks")
+    if any(r.get_linestyle() == "--" for d in drawn for k in boxes for r in d.get(k, [])):
+        kinds.add("unbounded")
+    return kinds
+
+
+def _legend_handles(colors: dict[str, Any], kinds: Collection[str]) -> list:
+    """Legend entries: the landmark classes in ``colors``, then each kind of artist drawn
+    (``kinds``, see :func:`_drawn_kinds`)."""
     from matplotlib.lines import Line2D
     from matplotlib.patches import Patch
 
@@ -149,15 +202,33 @@ def _legend_handles(
         Patch(facecolor=color, edgecolor=color, alpha=0.5, label=f"landmark: {name}")
         for name, color in colors.items()
     ]
-    if poses:
+    if "pose_boxes" in kinds:
         handles.append(Patch(facecolor="none", edgecolor=POSE_COLOR, label="pose box"))
-    if fans:
+    if "heading_fans" in kinds:
         handles.append(
             Patch(facecolor=POSE_COLOR, alpha=0.25, edgecolor="none", label="heading interval")
         )
-    if unbounded:
+    if "sightings" in kinds:
+        handles.append(Line2D([], [], color=SIGHTING_COLOR, linewidth=0.6, label="sighting"))
+    if "ambiguous_sightings" in kinds:
+        handles.append(
+            Line2D([], [], color=AMBIGUOUS_COLOR, linewidth=1.4,
+                   label="sighting the survivors assign differently")
+        )  # fmt: skip
+    if "envelope_poses" in kinds:
+        past = ",\nsome past the frame" if "envelope_past_frame" in kinds else ""
+        handles.append(
+            Patch(facecolor="none", edgecolor=ENVELOPE_COLOR, linewidth=ENVELOPE_WIDTH,
+                  label=f"pose envelope (any correspondence{past})")
+        )  # fmt: skip
+    if "envelope_landmarks" in kinds:
+        handles.append(
+            Patch(facecolor="none", edgecolor=ENVELOPE_COLOR, linewidth=ENVELOPE_WIDTH,
+                  linestyle=":", label="sighted landmark envelope")
+        )  # fmt: skip
+    if "unbounded" in kinds:
         handles.append(Line2D([], [], color="0.3", linestyle="--", label="unbounded (clipped)"))
-    handles += _truth_handles(bool(truth_poses), bool(truth_landmarks))
+    handles += _truth_handles(kinds)
     return handles
 
 
@@ -173,8 +244,8 @@ def _finish_axes(ax: Axes, extent: Extent, title: str | None) -> None:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.grid(True, linewidth=0.4, alpha=0.4)
-    if title is not None:
-        ax.set_title(title, fontsize="small")
+    if title is not None:  # at a fixed height: nothing sits on top of the axes to avoid
+        ax.set_title(title, fontsize="small", y=1.0)
 
 
 def _place_legend(ax: Axes, handles: list) -> Any:
@@ -186,6 +257,25 @@ def _place_legend(ax: Axes, handles: list) -> Any:
         borderaxespad=0.0,
         fontsize="small",
         frameon=False,
+    )
+
+
+def _legend_above(ax: Axes, handles: list, title: str | None) -> Any:
+    """An axes legend in one row above the plot, under ``title`` (which it replaces as the
+    axes title), so that it never hides the curves."""
+    return ax.legend(
+        handles=handles,
+        loc="lower left",
+        bbox_to_anchor=(0.0, 1.01),
+        borderaxespad=0.0,
+        ncols=len(handles),
+        fontsize="small",
+        title=title,
+        title_fontsize="small",
+        alignment="left",
+        frameon=False,
+        handlelength=1.5,
+        columnspacing=1.0,
     )
 
 

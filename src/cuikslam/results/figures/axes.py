@@ -5,6 +5,8 @@ with your own plots (and with Codac or GTSAM figures)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Collection, Sequence
+from itertools import pairwise
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -12,8 +14,11 @@ import numpy as np
 from cuikslam.results.figures.artists import (
     FAN_RADIUS,
     POSE_COLOR,
+    _draw_sightings,
     _draw_truth,
+    _drawn_kinds,
     _finish_axes,
+    _legend_above,
     _legend_handles,
     _place_legend,
     _rectangles,
@@ -28,10 +33,12 @@ from cuikslam.results.figures.geometry import (
     _clip_boxes,
     _fan_angles,
     _hypothesis_extent,
+    _true_landmark_rows,
     _xy_boxes,
     drawn_poses,
     pose_widths,
     scene_extent,
+    spread_labels,
 )
 from cuikslam.results.solution import Hypothesis
 
@@ -41,14 +48,21 @@ if TYPE_CHECKING:
     from cuikslam.simulate.truth import GroundTruth
 
 __all__ = [
+    "MAX_SIGHTINGS",
     "WIDTH_BINS",
     "plot_comparison_on_axes",
     "plot_hypothesis_on_axes",
     "plot_widths_on_axes",
 ]
 
-_MAX_POSE_LABELS = 40
-"""Beyond this many poses, only every k-th pose gets a label."""
+_MAX_FILLED_BOXES = 40
+"""Beyond this many pose boxes, their fills are left out (they would hide one another)."""
+_LABEL_SPACING = 0.035
+"""The least distance between two pose labels, as a fraction of the scene extent."""
+_LONG_RUN_LABEL_SPACING = 0.12
+"""The same when the pose boxes are thinned (a long run): a few labels, far apart."""
+MAX_SIGHTINGS = 300
+"""Beyond this many observations, the sightings (kinematic graph edges) are not drawn."""
 WIDTH_BINS = 500
 """Beyond this many poses, the widths panel draws the largest width of each bin of poses."""
 
@@ -65,6 +79,8 @@ def plot_hypothesis_on_axes(
     extent: Extent | None = None,
     class_colors: dict[str, Any] | None = None,
     max_pose_boxes: int | None = MAX_POSE_BOXES,
+    observation_poses: Sequence[int] | None = None,
+    highlight: Collection[int] = (),
 ) -> dict[str, list]:
     """Draw one hypothesis' boxes (and the truth) into ``ax``.
 
@@ -75,11 +91,15 @@ def plot_hypothesis_on_axes(
     hypothesis : Hypothesis
         The boxes: ``poses`` (n, 3, 2) and ``landmarks`` (m, 2, 2).
     truth : GroundTruth, optional
-        Drawn as points; only poses and landmarks whose ids the hypothesis has.
+        Drawn as points: the true poses the hypothesis has, and the true landmarks its
+        landmarks stand for, paired through the association whatever their names
+        (:func:`~cuikslam.results.association.paired_landmarks`).
     title : str, optional
         The axes title.
     show_labels : bool
-        Label poses (with their id; every k-th pose beyond 40 poses) and landmarks.
+        Label landmarks, and poses with their ids, spread so that labels do not overlap
+        (a pose near an earlier labelled one joins its label: ``1, 9`` where a loop
+        closes; on a long run only a few, far apart).
     heading_fan : bool
         Draw each pose's heading interval as a wedge from its box centre.
     legend : bool
@@ -91,9 +111,18 @@ def plot_hypothesis_on_axes(
     class_colors : dict, optional
         Class → colour; default :func:`class_color_map` of the hypothesis' classes.
     max_pose_boxes : int or None
-        Draw at most about this many pose boxes (and fans): every k-th pose, the last one
-        and the widest one (:func:`drawn_poses`); None draws every box. The path still
-        runs through every pose.
+        Draw at most about this many pose boxes (and fans, and true poses with their
+        heading ticks): every k-th pose, the last one and the widest one
+        (:func:`drawn_poses`); None draws every box. The path still runs through every
+        pose, and the true path through every true pose.
+    observation_poses : sequence of int, optional
+        The pose id of each observation, in log order (``[o.pose for o in
+        log.observations]``): draws the kinematic graph's sightings, a line from the pose's
+        box to the box of the landmark the hypothesis assigns (up to
+        :data:`MAX_SIGHTINGS` observations).
+    highlight : collection of int
+        Observations (indices in log order) whose sightings are drawn in red: those the
+        survivors of a search assign differently.
 
     Returns
     -------
@@ -101,9 +130,11 @@ def plot_hypothesis_on_axes(
         The artists by kind: ``pose_boxes`` (Rectangle per drawn pose), ``heading_fans``
         (Wedge per drawn pose with a non-empty heading interval), ``pose_labels`` (Text),
         ``path`` (one Line2D through the box centres), ``landmark_boxes`` (Rectangle per
-        landmark), ``landmark_labels`` (Text), ``truth_poses`` (one Line2D of dots),
-        ``truth_headings`` (one LineCollection of ticks), ``truth_landmarks`` (one
-        Line2D of crosses) and ``legend`` (zero or one Legend).
+        landmark), ``landmark_labels`` (Text), ``sightings`` and ``ambiguous_sightings``
+        (a LineCollection each), ``truth_poses`` (one Line2D of dots),
+        ``truth_headings`` (one LineCollection of ticks), ``truth_path`` (one Line2D when
+        the true poses are thinned), ``truth_landmarks`` (one Line2D of crosses) and
+        ``legend`` (zero or one Legend).
     """
     from matplotlib.patches import Wedge
 
@@ -121,8 +152,11 @@ def plot_hypothesis_on_axes(
         "path": [],
         "landmark_boxes": [],
         "landmark_labels": [],
+        "sightings": [],
+        "ambiguous_sightings": [],
         "truth_poses": [],
         "truth_headings": [],
+        "truth_path": [],
         "truth_landmarks": [],
         "legend": [],
     }
@@ -130,12 +164,11 @@ def plot_hypothesis_on_axes(
     # Landmarks: filled, coloured by class, under the poses.
     landmark_xy = _xy_boxes(hypothesis.landmarks)
     clipped_landmarks, _ = _clip_boxes(landmark_xy, extent)
-    any_unbounded = False
     for k, (box, cls) in enumerate(
         zip(landmark_xy, hypothesis.landmark_classes[: len(landmark_xy)], strict=True)
     ):
         color = class_colors.get(cls, "0.5")
-        (rect,), unbounded = _rectangles(
+        (rect,), _ = _rectangles(
             ax,
             box[None],
             extent,
@@ -145,7 +178,6 @@ def plot_hypothesis_on_axes(
             linewidth=1.2,
             zorder=2,
         )
-        any_unbounded |= unbounded
         artists["landmark_boxes"].append(rect)
         if show_labels:
             (x0, x1), (_, y1) = clipped_landmarks[k]
@@ -167,8 +199,9 @@ def plot_hypothesis_on_axes(
     # Poses: unfilled boxes, heading fans, the path through the centres, labels.
     all_pose_boxes = np.asarray(hypothesis.poses, dtype=float).reshape(-1, 3, 2)
     drawn = drawn_poses(all_pose_boxes, max_pose_boxes)
+    thinned = len(drawn) < len(all_pose_boxes)
     pose_boxes = all_pose_boxes[drawn]
-    rects, unbounded = _rectangles(
+    rects, _ = _rectangles(
         ax,
         pose_boxes[:, :2],
         extent,
@@ -178,12 +211,11 @@ def plot_hypothesis_on_axes(
         alpha=None,
         zorder=3,
     )
-    many = len(rects) > _MAX_POSE_LABELS  # overlapping fills would hide one another
+    many = len(rects) > _MAX_FILLED_BOXES  # overlapping fills would hide one another
     for rect in rects:  # a faint fill shows the area, a solid edge the outline
         rect.set_facecolor((*_rgb(POSE_COLOR), 0.0 if many else 0.06))
         if many:
             rect.set_linewidth(0.5)
-    any_unbounded |= unbounded
     artists["pose_boxes"] = rects
     clipped_poses, _ = _clip_boxes(all_pose_boxes[:, :2], extent)
     all_centres = clipped_poses.mean(axis=2)
@@ -206,22 +238,58 @@ def plot_hypothesis_on_axes(
             ax.add_patch(wedge)
             artists["heading_fans"].append(wedge)
     if len(all_centres) > 1:
-        thin = len(all_centres) > len(centres)
         (line,) = ax.plot(
             all_centres[:, 0],
             all_centres[:, 1],
             color=POSE_COLOR,
-            linewidth=0.5 if thin else 0.8,
-            alpha=0.4 if thin else 0.7,
+            linewidth=0.5 if thinned else 0.8,
+            alpha=0.4 if thinned else 0.7,
             zorder=4,
         )
         artists["path"].append(line)
-    if show_labels and len(centres):
-        stride = math.ceil(len(centres) / _MAX_POSE_LABELS)
-        for k in range(0, len(centres), stride):
-            label = ax.annotate(
-                str(hypothesis.pose_ids[drawn[k]]),
-                tuple(centres[k]),
+    if show_labels:
+        artists["pose_labels"] = _pose_labels(
+            ax, centres, [hypothesis.pose_ids[i] for i in drawn], scale, thinned, text
+        )
+    if observation_poses is not None and len(hypothesis.assignment) <= MAX_SIGHTINGS:
+        clipped_marks = clipped_landmarks.mean(axis=2)
+        segments, ambiguous = _sighting_segments(
+            hypothesis, all_centres, clipped_marks, observation_poses, highlight
+        )
+        artists.update(_draw_sightings(ax, segments, ambiguous))
+
+    if truth is not None:
+        ticked = {hypothesis.pose_ids[i] for i in drawn} if thinned else None
+        rows = _true_landmark_rows(hypothesis, truth)
+        artists.update(_draw_truth(ax, truth, 0.8 * radius, hypothesis.pose_ids, rows, ticked))
+    _finish_axes(ax, extent, title)
+    if legend:
+        colors = {c: class_colors.get(c, "0.5") for c in sorted(set(hypothesis.landmark_classes))}
+        handles = _legend_handles(colors, _drawn_kinds(artists))
+        artists["legend"].append(_place_legend(ax, handles))
+    return artists
+
+
+def _pose_labels(
+    ax: Axes,
+    centres: np.ndarray,
+    pose_ids: Sequence[int],
+    scale: float,
+    thinned: bool,
+    text: dict[str, Any],
+) -> list:
+    """Pose ids at their box centres, spread (:func:`spread_labels`) so none overlap."""
+    spacing = (_LONG_RUN_LABEL_SPACING if thinned else _LABEL_SPACING) * scale
+    labels = []
+    for group in spread_labels(centres, spacing):
+        words = str(pose_ids[group[0]])
+        later = [i for prev, i in pairwise(group) if i - prev > 1]
+        if later and not thinned:  # the pose is visited again: a loop closes here
+            words += f", {pose_ids[later[0]]}"
+        labels.append(
+            ax.annotate(
+                words,
+                tuple(centres[group[0]]),
                 xytext=(4, -4),
                 textcoords="offset points",
                 ha="left",
@@ -231,24 +299,36 @@ def plot_hypothesis_on_axes(
                 zorder=7,
                 **text,
             )
-            artists["pose_labels"].append(label)
+        )
+    return labels
 
-    if truth is not None:
-        artists.update(
-            _draw_truth(ax, truth, 0.8 * radius, hypothesis.pose_ids, hypothesis.landmark_ids)
+
+def _sighting_segments(
+    hypothesis: Hypothesis,
+    pose_centres: np.ndarray,
+    landmark_centres: np.ndarray,
+    observation_poses: Sequence[int],
+    highlight: Collection[int],
+) -> tuple[np.ndarray, np.ndarray]:
+    """For each observation the hypothesis assigns a landmark (not an outlier), a segment
+    from its pose's box centre to that landmark's; and which of them to highlight."""
+    if len(observation_poses) != len(hypothesis.assignment):
+        raise ValueError(
+            f"observation_poses has {len(observation_poses)} poses for the hypothesis' "
+            f"{len(hypothesis.assignment)} observations"
         )
-    _finish_axes(ax, extent, title)
-    if legend:
-        handles = _legend_handles(
-            {c: class_colors.get(c, "0.5") for c in sorted(set(hypothesis.landmark_classes))},
-            poses=bool(rects),
-            fans=bool(artists["heading_fans"]),
-            unbounded=any_unbounded,
-            truth_poses=bool(artists["truth_poses"]),
-            truth_landmarks=bool(artists["truth_landmarks"]),
-        )
-        artists["legend"].append(_place_legend(ax, handles))
-    return artists
+    pose_row = {p: i for i, p in enumerate(hypothesis.pose_ids)}
+    landmark_row = {lid: j for j, lid in enumerate(hypothesis.landmark_ids)}
+    marked = set(highlight)
+    segments, ambiguous = [], []
+    for i, (pose, landmark) in enumerate(
+        zip(observation_poses, hypothesis.assignment, strict=True)
+    ):
+        if pose in pose_row and landmark in landmark_row:
+            ends = pose_centres[pose_row[pose]], landmark_centres[landmark_row[landmark]]
+            segments.append(ends)
+            ambiguous.append(i in marked)
+    return np.array(segments, dtype=float).reshape(-1, 2, 2), np.array(ambiguous, dtype=bool)
 
 
 def plot_comparison_on_axes(
@@ -314,14 +394,13 @@ def plot_comparison_on_axes(
         any_unbounded |= unbounded
         artists[label] = rects
         handles.append(Line2D([], [], color=color, linewidth=2.0, label=label))
-    artists.setdefault("truth_poses", [])
-    artists.setdefault("truth_headings", [])
-    artists.setdefault("truth_landmarks", [])
+    for kind in ("truth_poses", "truth_headings", "truth_path", "truth_landmarks"):
+        artists.setdefault(kind, [])
     if truth is not None:
         tick = 0.8 * FAN_RADIUS * max(extent[1] - extent[0], extent[3] - extent[2])
         drawn = _draw_truth(ax, truth, tick, None, None)
         artists.update(drawn)
-        handles += _truth_handles(bool(drawn["truth_poses"]), bool(drawn["truth_landmarks"]))
+        handles += _truth_handles(_drawn_kinds(drawn))
     if any_unbounded:
         handles.append(Line2D([], [], color="0.3", linestyle="--", label="unbounded (clipped)"))
     _finish_axes(ax, extent, title)
@@ -356,13 +435,11 @@ def plot_widths_on_axes(ax: Axes, hypothesis: Hypothesis, *, title: str | None =
     )
     twin.set_ylabel("θ width [rad]", fontsize="small")
     for axes, column in ((ax, shown[:, :2]), (twin, shown[:, 2])):
-        top = np.nanmax(column, initial=0.0)  # room above the lines for the legend
-        axes.set_ylim(0.0, 1.3 * top if top > 0 else 1.0)
+        top = np.nanmax(column, initial=0.0)
+        axes.set_ylim(0.0, 1.05 * top if top > 0 else 1.0)
     ax.set_xlim(0, max(len(widths) - 1, 1))
     ax.set_xlabel("pose (in log order)")
     ax.set_ylabel("width [m]")
     ax.grid(True, linewidth=0.4, alpha=0.4)
-    ax.legend(handles=[line_x, line_y, line_t], fontsize="small", loc="upper left", ncols=3)
-    if title is not None:
-        ax.set_title(title, fontsize="small")
+    _legend_above(ax, [line_x, line_y, line_t], title)
     return {"lines": [line_x, line_y, line_t], "twin": [twin]}

@@ -7,43 +7,56 @@ from __future__ import annotations
 import math
 import os
 import textwrap
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from cuikslam._atomic import atomic_open
 from cuikslam.results.figures.artists import (
     FAN_RADIUS,
     _draw_truth,
+    _drawn_kinds,
     _finish_axes,
     _legend_handles,
+    _place_legend,
     class_color_map,
 )
 from cuikslam.results.figures.axes import plot_hypothesis_on_axes, plot_widths_on_axes
+from cuikslam.results.figures.envelope import plot_envelope_on_axes
 from cuikslam.results.figures.geometry import (
     MAX_POSE_BOXES,
+    Extent,
+    _envelope_extent,
     _hypothesis_extent,
     _union_extent,
     drawn_poses,
     scene_extent,
     widest_stretch,
 )
-from cuikslam.results.solution import Hypothesis, Solution
+from cuikslam.results.solution import Envelope, Hypothesis, Solution, no_hypothesis
+from cuikslam.results.summary import ambiguous_observations
 
 if TYPE_CHECKING:
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
     from cuikslam.simulate.truth import GroundTruth
 
-__all__ = ["WIDTH_PANEL_POSES", "plot_solution", "save_figure"]
+__all__ = ["DPI", "WIDTH_PANEL_POSES", "plot_solution", "save_figure"]
 
 WIDTH_PANEL_POSES = 60
 """A one-hypothesis figure of more poses than this gets a panel of widths over time."""
 _FORMATS = {".png": "png", ".pdf": "pdf", ".svg": "svg"}
+DPI = 200
+"""Pixels per inch of the PNG figures: above the 150 a printed figure needs at its size."""
 
 
-def _assignment_text(assignment: Sequence[str], width: int, max_lines: int = 3) -> str:
-    """``obs→L: 1 1 2 …`` with the landmark ids' common non-digit prefix moved to the head."""
+def _assignment_text(
+    assignment: Sequence[str], width: int, max_lines: int = 3, marked: Collection[int] = ()
+) -> str:
+    """``obs→L: 1 1 2 …`` with the landmark ids' common non-digit prefix moved to the head;
+    the observations in ``marked`` in brackets (``[2]``)."""
     if not assignment:
         return "no observations"
     ids = [str(a) for a in assignment]
@@ -52,6 +65,7 @@ def _assignment_text(assignment: Sequence[str], width: int, max_lines: int = 3) 
         head, tokens = f"obs→{prefix}:", [a[len(prefix) :] for a in ids]
     else:
         head, tokens = "obs→landmark:", ids
+    tokens = [f"[{t}]" if i in marked else t for i, t in enumerate(tokens)]
     lines = textwrap.wrap(" ".join([head, *tokens]), width=width, break_long_words=False)
     if len(lines) > max_lines:
         lines = lines[:max_lines]
@@ -73,10 +87,15 @@ _MAX_TITLE_OBSERVATIONS = 30
 
 
 def _panel_title(
-    rank: int, hypothesis: Hypothesis, width: int, max_observations: int | None = None
+    rank: int,
+    hypothesis: Hypothesis,
+    width: int,
+    max_observations: int | None = None,
+    marked: Collection[int] = (),
 ) -> str:
     """Rank, landmarks, status, level (and poses drawn, for long runs), then the
-    assignment, or only its length beyond ``max_observations`` observations."""
+    assignment (``marked`` observations in brackets), or only its length beyond
+    ``max_observations`` observations."""
     n = hypothesis.n_landmarks
     head = f"#{rank} · {n} landmark{'s' if n != 1 else ''} · {hypothesis.status}"
     if hypothesis.consistency:
@@ -86,7 +105,7 @@ def _panel_title(
         head += f" · {poses:,} poses, {len(drawn_poses(hypothesis.poses))} boxes drawn"
     if max_observations is not None and len(hypothesis.assignment) > max_observations:
         return head + f"\n{len(hypothesis.assignment):,} observations (assignment in the result)"
-    return head + "\n" + _assignment_text(hypothesis.assignment, width)
+    return head + "\n" + _assignment_text(hypothesis.assignment, width, marked=set(marked))
 
 
 def _suptitle(solution: Solution, shown: int) -> str:
@@ -105,7 +124,10 @@ def _suptitle(solution: Solution, shown: int) -> str:
         text += f" (+{n - shown} more not shown)"
     if solution.complete:
         return text + " · search complete"
-    return text + "\nsearch INCOMPLETE: limits dropped hypotheses, the true one may be missing"
+    text += "\nsearch INCOMPLETE: limits dropped hypotheses, the true one may be missing"
+    if solution.envelope is not None:
+        text += "\n(the grey envelope holds the truth whatever the correspondence)"
+    return text
 
 
 def plot_solution(
@@ -114,14 +136,34 @@ def plot_solution(
     *,
     max_hypotheses: int = 12,
     figsize: tuple[float, float] | None = None,
+    observation_poses: Sequence[int] | None = None,
 ) -> Figure:
-    """A figure of a solve's surviving hypotheses.
+    """A figure of a solve's surviving hypotheses and, with unknown correspondence, its
+    envelope.
 
     One panel when a single hypothesis survived; otherwise small multiples (a grid, best
     rank first) of at most ``max_hypotheses`` panels sharing the same axes limits, each
     titled with its rank, number of landmarks, status and assignment (the landmark of
     each observation, in log order).  The figure title gives the number of hypotheses,
-    whether the search was complete, and how many were left out.
+    whether the search was complete, and how many were left out.  The envelope
+    (``solution.envelope``: each pose's box whatever the correspondence) is drawn in grey
+    under every panel; with no hypothesis (a search stopped on its budget before finding
+    one) it is drawn alone, with where each sighted landmark lies: the guaranteed answer.
+    The legend sits outside the panels.
+
+    Parameters
+    ----------
+    solution : Solution
+        A solve's result.
+    truth : GroundTruth, optional
+        Drawn as points (see :func:`plot_hypothesis_on_axes`).
+    max_hypotheses : int
+        Panels at most.
+    figsize : (float, float), optional
+        The figure size in inches; default from the scene's aspect ratio.
+    observation_poses : sequence of int, optional
+        The pose id of each observation (log order): the panels draw the sightings, those
+        the survivors assign differently in red (see :func:`plot_hypothesis_on_axes`).
 
     The figure is created with :mod:`matplotlib.pyplot` (so ``plt.show()`` can display
     it) but never shown here; pass it to :func:`save_figure`, which also closes it.
@@ -131,21 +173,15 @@ def plot_solution(
     if max_hypotheses < 1:
         raise ValueError(f"max_hypotheses must be at least 1, got {max_hypotheses}")
     shown = solution.hypotheses[:max_hypotheses]
-    classes = {c for h in shown for c in h.landmark_classes}
-    if truth is not None:
-        classes |= set(truth.landmark_classes)
-    colors = class_color_map(classes)
+    colors = class_color_map(_classes(shown, truth))
+    extent = _solution_extent(shown, solution.envelope, truth)
+    aspect = (extent[3] - extent[2]) / (extent[1] - extent[0])
+    panel = _Panel(solution, truth, extent, colors, observation_poses)
 
     # Figure sizes follow the scene's aspect ratio so that equal-aspect panels fill them.
     # Panels are anchored at the top: constrained layout measures titles from where the
     # axes would be before its aspect shrinks it, so a centred (lowered) axes lets titles
     # collide with the figure title.
-    if shown:
-        extent = _union_extent(_hypothesis_extent(h, truth) for h in shown)
-    else:
-        extent = scene_extent([], [] if truth is None else [truth.poses_xyt, truth.landmarks_xy])
-    aspect = (extent[3] - extent[2]) / (extent[1] - extent[0])
-
     if len(shown) <= 1:
         height = min(max(5.3 * aspect, 3.0), 9.0) + 1.4
         long_run = bool(shown) and len(shown[0].pose_ids) > WIDTH_PANEL_POSES
@@ -158,26 +194,13 @@ def plot_solution(
             fig = plt.figure(figsize=figsize or (8.0, height), layout="constrained")
             ax = fig.add_subplot()
         ax.set_anchor("N")
-        if shown:
-            title = _panel_title(1, shown[0], 80, _MAX_TITLE_OBSERVATIONS)
-            plot_hypothesis_on_axes(ax, shown[0], truth, title=title, class_colors=colors)
+        hypothesis = shown[0] if shown else None
+        title = _panel_title(1, hypothesis, 80, _MAX_TITLE_OBSERVATIONS) if hypothesis else None
+        drawn = panel.draw(ax, hypothesis, title)
         if long_run:
             plot_widths_on_axes(aw, shown[0], title="pose box widths along the run")
             _zoom(az, shown[0], truth, colors)
-        else:
-            if truth is not None:
-                _draw_truth(ax, truth, 0.8 * FAN_RADIUS * (extent[1] - extent[0]), None, None)
-            _finish_axes(ax, extent, None)
-            ax.text(
-                0.5,
-                0.5,
-                "no hypothesis to draw",
-                transform=ax.transAxes,
-                ha="center",
-                va="center",
-                fontsize="large",
-                color="0.4",
-            )
+        _place_legend(ax, _legend_handles(_used_colors(colors, shown), _drawn_kinds(*drawn)))
         fig.suptitle(_suptitle(solution, len(shown)))
         return fig
 
@@ -190,44 +213,102 @@ def plot_solution(
         layout="constrained",
         squeeze=False,
     )
-    fig.get_layout_engine().set(hspace=0.05, wspace=0.04)  # keep titles off the row above
+    # keep titles off the row above, and the x labels off the legend below
+    fig.get_layout_engine().set(hspace=0.05, wspace=0.04, h_pad=0.1)
     width = 44 if ncols <= 3 else 36
-    any_unbounded = fans = truth_poses = truth_landmarks = False
+    marked = set(ambiguous_observations(solution))
+    drawn = []
     for rank, (ax, hypothesis) in enumerate(zip(axes.flat, shown, strict=False), start=1):
         ax.set_anchor("N")
-        drawn = plot_hypothesis_on_axes(
-            ax,
-            hypothesis,
-            truth,
-            title=_panel_title(rank, hypothesis, width),
-            legend=False,
-            extent=extent,
-            class_colors=colors,
-        )
-        any_unbounded |= any(r.get_linestyle() == "--" for r in drawn["pose_boxes"])
-        any_unbounded |= any(r.get_linestyle() == "--" for r in drawn["landmark_boxes"])
-        fans |= bool(drawn["heading_fans"])
-        truth_poses |= bool(drawn["truth_poses"])
-        truth_landmarks |= bool(drawn["truth_landmarks"])
+        drawn += panel.draw(ax, hypothesis, _panel_title(rank, hypothesis, width, None, marked))
     for ax in axes.flat[len(shown) :]:
         ax.set_visible(False)
-    handles = _legend_handles(
-        colors,
-        poses=True,
-        fans=fans,
-        unbounded=any_unbounded,
-        truth_poses=truth_poses,
-        truth_landmarks=truth_landmarks,
-    )
-    fig.legend(
+    _figure_legend(fig, _legend_handles(_used_colors(colors, shown), _drawn_kinds(*drawn)))
+    fig.suptitle(_suptitle(solution, len(shown)))
+    return fig
+
+
+def _classes(shown: Sequence[Hypothesis], truth: GroundTruth | None) -> set[str]:
+    classes = {c for h in shown for c in h.landmark_classes}
+    return classes | set(truth.landmark_classes) if truth is not None else classes
+
+
+def _used_colors(colors: dict[str, Any], shown: Sequence[Hypothesis]) -> dict[str, Any]:
+    """The colours of the landmark classes the panels draw boxes of (legend entries)."""
+    used = {c for h in shown for c in h.landmark_classes}
+    return {name: color for name, color in colors.items() if name in used}
+
+
+def _solution_extent(
+    shown: Sequence[Hypothesis], envelope: Envelope | None, truth: GroundTruth | None
+) -> Extent:
+    """The extent shared by a figure's panels: every hypothesis shown and the truth drawn;
+    with none, the envelope's boxes. (Panels of hypotheses frame them: an envelope box
+    wider than the frame, as after a search cut short, runs past its edges.)"""
+    if shown:
+        return _union_extent(_hypothesis_extent(h, truth) for h in shown)
+    if envelope is not None:
+        return _envelope_extent(envelope, truth)
+    return scene_extent([], [] if truth is None else [truth.poses_xyt, truth.landmarks_xy])
+
+
+@dataclass
+class _Panel:
+    """What every panel of a result's figure shares: its envelope, truth, extent, colours."""
+
+    solution: Solution
+    truth: GroundTruth | None
+    extent: Extent
+    colors: dict[str, Any]
+    observation_poses: Sequence[int] | None = None
+
+    def draw(self, ax: Axes, hypothesis: Hypothesis | None, title: str | None) -> list[dict]:
+        """The envelope (if any), then ``hypothesis``; with neither, why there is nothing.
+
+        Returns the artists of each layer drawn (:func:`plot_hypothesis_on_axes`)."""
+        envelope = self.solution.envelope
+        drawn = []
+        if envelope is not None:
+            alone = hypothesis is None
+            drawn.append(
+                plot_envelope_on_axes(
+                    ax, envelope, self.truth if alone else None, landmarks=alone,
+                    extent=self.extent, title=ENVELOPE_TITLE if alone else None,
+                )
+            )  # fmt: skip
+        if hypothesis is not None:
+            drawn.append(
+                plot_hypothesis_on_axes(
+                    ax, hypothesis, self.truth, title=title, legend=False, extent=self.extent,
+                    class_colors=self.colors, observation_poses=self.observation_poses,
+                    highlight=ambiguous_observations(self.solution),
+                )
+            )  # fmt: skip
+        elif envelope is None:
+            if self.truth is not None:
+                tick = 0.8 * FAN_RADIUS * (self.extent[1] - self.extent[0])
+                drawn.append(_draw_truth(ax, self.truth, tick, None, None))
+            _finish_axes(ax, self.extent, None)
+            ax.text(
+                0.5, 0.5, f"nothing to draw: {no_hypothesis(self.solution)}",
+                transform=ax.transAxes, ha="center", va="center", wrap=True, color="0.4",
+            )  # fmt: skip
+        return drawn
+
+
+ENVELOPE_TITLE = "the envelope: each pose, and each sighted landmark,\nwhatever the correspondence"
+"""The title of a panel that draws the envelope alone (a result with no hypothesis)."""
+
+
+def _figure_legend(fig: Figure, handles: list) -> Any:
+    """A figure legend below the panels, never over them."""
+    return fig.legend(
         handles=handles,
         loc="outside lower center",
         ncols=min(len(handles), 4),
         fontsize="small",
         frameon=False,
     )
-    fig.suptitle(_suptitle(solution, len(shown)))
-    return fig
 
 
 def _zoom(ax, hypothesis: Hypothesis, truth: GroundTruth | None, colors: dict) -> None:
@@ -248,12 +329,27 @@ def _zoom(ax, hypothesis: Hypothesis, truth: GroundTruth | None, colors: dict) -
     )  # fmt: skip
 
 
-def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = 150) -> None:
+def save_figure(
+    fig: Figure, path: str | os.PathLike[str], dpi: int = DPI, *, tight: bool = True
+) -> None:
     """Write ``fig`` to ``path`` atomically (png, pdf or svg, from the suffix), then close it.
 
     The image is rendered into a temporary file in the target's folder and renamed over
-    the target only when complete, so readers never see a partial image.  The saved area
-    is the figure's tight bounding box (so legends outside the axes are kept whole).
+    the target only when complete, so readers never see a partial image.  A PNG records
+    its ``dpi``, so that it is shown at the figure's size.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    path : str or os.PathLike
+        The file; its suffix (``.png``, ``.pdf``, ``.svg``) chooses the format.
+    dpi : int
+        Pixels per inch of a PNG (:data:`DPI`: fit for print at the figure's size).
+    tight : bool
+        Save the figure's tight bounding box (so that legends outside the axes are kept
+        whole), at the cost of drawing it twice; False saves the figure as laid out (for
+        a figure whose layout keeps everything inside, as :func:`plot_known_and_unknown`).
 
     Raises
     ------
@@ -266,9 +362,9 @@ def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int = 150) -> No
             f"cannot infer the image format of {os.fspath(path)!r}: "
             f"use one of {', '.join(_FORMATS)}"
         )
+    crop = {"bbox_inches": "tight", "pad_inches": 0.1} if tight else {}
     with atomic_open(path, "wb") as stream:
-        # A tight bounding box keeps outside legends whole whatever the dpi's text metrics.
-        fig.savefig(stream, format=_FORMATS[suffix], dpi=dpi, bbox_inches="tight", pad_inches=0.1)
+        fig.savefig(stream, format=_FORMATS[suffix], dpi=dpi, **crop)
     import matplotlib.pyplot as plt
 
     plt.close(fig)

@@ -12,7 +12,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from cuikslam.results.solution import Hypothesis
+from cuikslam.results.association import paired_landmarks
+from cuikslam.results.solution import Envelope, Hypothesis
 
 if TYPE_CHECKING:
     from cuikslam.simulate.truth import GroundTruth
@@ -24,6 +25,7 @@ __all__ = [
     "drawn_poses",
     "pose_widths",
     "scene_extent",
+    "spread_labels",
     "widest_stretch",
 ]
 
@@ -32,8 +34,10 @@ Extent = tuple[float, float, float, float]
 
 _PAD = 0.06
 """Margin added around the finite bounds, as a fraction of the larger side."""
-MAX_POSE_BOXES = 150
-"""Beyond this many poses, every k-th pose box is drawn (and the widest), not all."""
+MAX_POSE_BOXES = 60
+"""Beyond this many poses, every k-th pose box is drawn (and the widest), not all: more
+boxes, fans and true heading ticks than this overlap into a mass on a long run's map (the
+widths panel and the zoom of a long run's figure show every pose)."""
 ZOOM_POSES = 30
 """Consecutive poses in the zoom on a long run's widest stretch (every box drawn)."""
 
@@ -110,16 +114,82 @@ def _fan_angles(theta: np.ndarray) -> tuple[float, float] | None:
     return (math.degrees(lo), math.degrees(hi))
 
 
+def _true_landmark_rows(hypothesis: Hypothesis, truth: GroundTruth) -> list[int]:
+    """Rows of ``truth.landmarks_xy`` that the hypothesis' landmarks stand for (paired
+    through the association, :func:`~cuikslam.results.association.paired_landmarks`)."""
+    paired = {t for ts in paired_landmarks(hypothesis, truth).values() for t in ts}
+    return [j for j, lid in enumerate(truth.landmark_ids) if lid in paired]
+
+
+def _sighted_landmark_rows(truth: GroundTruth) -> list[int]:
+    """Rows of the true landmarks some observation sees (all of them without an assignment)."""
+    if not truth.assignment:
+        return list(range(len(truth.landmark_ids)))
+    seen = set(truth.assignment)
+    return [j for j, lid in enumerate(truth.landmark_ids) if lid in seen]
+
+
+def _truth_points(
+    truth: GroundTruth | None, pose_ids: Iterable[int], landmark_rows: Sequence[int]
+) -> list[np.ndarray]:
+    """The true positions of ``pose_ids`` and the true landmarks of ``landmark_rows``."""
+    if truth is None:
+        return []
+    ids = set(pose_ids)
+    poses = np.asarray(truth.poses_xyt, dtype=float).reshape(-1, 3)
+    marks = np.asarray(truth.landmarks_xy, dtype=float).reshape(-1, 2)
+    return [poses[[i for i, p in enumerate(truth.pose_ids) if p in ids]], marks[landmark_rows]]
+
+
 def _hypothesis_extent(hypothesis: Hypothesis, truth: GroundTruth | None) -> Extent:
-    points = []
-    if truth is not None:
-        pose_ids = set(hypothesis.pose_ids)
-        landmark_ids = set(hypothesis.landmark_ids)
-        poses = np.asarray(truth.poses_xyt, dtype=float).reshape(-1, 3)
-        points.append(poses[[i for i, p in enumerate(truth.pose_ids) if p in pose_ids]])
-        marks = np.asarray(truth.landmarks_xy, dtype=float).reshape(-1, 2)
-        points.append(marks[[j for j, m in enumerate(truth.landmark_ids) if m in landmark_ids]])
+    rows = [] if truth is None else _true_landmark_rows(hypothesis, truth)
+    points = _truth_points(truth, hypothesis.pose_ids, rows)
     return scene_extent([hypothesis.poses, hypothesis.landmarks], points)
+
+
+def _envelope_extent(envelope: Envelope, truth: GroundTruth | None) -> Extent:
+    rows = [] if truth is None else _sighted_landmark_rows(truth)
+    points = _truth_points(truth, envelope.pose_ids, rows)
+    return scene_extent([envelope.poses, envelope.observations], points)
+
+
+def spread_labels(points_xy: np.ndarray, min_distance: float) -> list[list[int]]:
+    """Group points for labels that do not overlap: each group is labelled at its first
+    point, and a point within ``min_distance`` of a group's first point joins that group.
+
+    Points are taken in order (a later point near an earlier one joins the earlier one's
+    group, as a loop's last pose joins its first); non-finite points get no label.
+
+    Parameters
+    ----------
+    points_xy : numpy.ndarray
+        (n, 2) label anchors.
+    min_distance : float
+        The least distance between two groups' first points (metres).
+
+    Returns
+    -------
+    list of list of int
+        The groups, each a list of indices into ``points_xy``, first point first.
+
+    Examples
+    --------
+    >>> spread_labels(np.array([[0.0, 0.0], [5.0, 0.0], [0.1, 0.0], [np.nan, 0.0]]), 1.0)
+    [[0, 2], [1]]
+    """
+    points = np.asarray(points_xy, dtype=float).reshape(-1, 2)
+    anchors = np.empty((0, 2))
+    groups: list[list[int]] = []
+    for i, point in enumerate(points):
+        if not np.isfinite(point).all():
+            continue
+        near = np.hypot(*(anchors - point).T) < min_distance if len(anchors) else []
+        if np.any(near):
+            groups[int(np.argmax(near))].append(i)
+        else:
+            anchors = np.vstack([anchors, point])
+            groups.append([i])
+    return groups
 
 
 def drawn_poses(pose_boxes: np.ndarray, max_boxes: int | None = MAX_POSE_BOXES) -> np.ndarray:
