@@ -494,7 +494,7 @@ def test_certify_names_the_undecided_hypotheses() -> None:
     assert solution.statistics["undecided_hypotheses"] == 2
     assert all(h.status == NOT_REFUTED for h in solution.hypotheses)
     assert any(
-        "2 of 2 hypotheses undecided" in m and m.endswith(": 1-2") for m in solution.messages
+        "2 of 2 hypotheses undecided" in m and m.endswith(": ranks 1-2") for m in solution.messages
     )
 
 

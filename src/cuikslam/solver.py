@@ -196,8 +196,14 @@ def solve(
             progress=progress,
             deadline=portion(deadline, SEARCH_SHARE),
             on_survivor=on_survivor,
-            prove=lambda hypothesis: certify(
-                log, Solution([hypothesis]), deadline=portion(deadline, EARLY_PROOF_SHARE)
+            prove=(
+                (
+                    lambda h: certify(
+                        log, Solution([h]), deadline=portion(deadline, EARLY_PROOF_SHARE)
+                    )
+                )
+                if options.certify_limit != 0 and n_poses <= CERTIFY_MAX_POSES
+                else None
             ),
             rank=lambda report: fit_hypotheses(
                 log,
