@@ -91,19 +91,25 @@ def test_same_boxes_for_any_number_of_threads(monkeypatch: pytest.MonkeyPatch) -
 
 def test_a_failing_part_stops_the_others(monkeypatch: pytest.MonkeyPatch) -> None:
     """An exception in the first part (Ctrl-C, say) is raised at once: the other threads
-    stop at their next window instead of finishing their sweep."""
+    stop at their next window instead of finishing their sweep.
+
+    The second part's first window waits until the first part has failed (the order a
+    slow window on a busy machine could give), so that the count does not depend on how
+    the threads are scheduled; without the stop it would visit all its windows."""
     import threading
     import time
 
     monkeypatch.setattr(parts_module, "MIN_PART_WINDOWS", 3)
     visit = sweeps_module._visit
     other = []
+    give_up = time.monotonic() + 60.0  # only if the failure never reaches the part
 
     def slow_visit(part, *args):
         if threading.current_thread() is threading.main_thread():
             raise RuntimeError("interrupted")
         other.append(part.windows)
-        time.sleep(0.05)
+        while not part.abandon and time.monotonic() < give_up:
+            time.sleep(0.001)
         return visit(part, *args)
 
     monkeypatch.setattr(sweeps_module, "_visit", slow_visit)
@@ -111,7 +117,7 @@ def test_a_failing_part_stops_the_others(monkeypatch: pytest.MonkeyPatch) -> Non
     graph = KinematicGraph.from_log(log)
     with pytest.raises(RuntimeError, match="interrupted"):
         _lp(graph, 2)
-    assert len(other) <= 2, len(other)  # of the 5 or 6 windows of the second part
+    assert len(other) <= 1, len(other)  # of the 5 or 6 windows of the second part
 
 
 def test_parts_stay_close_to_one_part(monkeypatch: pytest.MonkeyPatch) -> None:

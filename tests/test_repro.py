@@ -3,9 +3,10 @@ and the minimal failing worlds the property tests found (``tests/data/found``).
 
 Each is a valid log; those with a ``.truth.json`` come from a known true world. With
 default options the true partition must survive, its boxes must hold the exact truth
-(headings modulo 2π), and ``cuikslam solve`` must exit 0 without a traceback. The others
-are consistent logs that crashed or ran for minutes: they must exit 0 without a
-traceback, within a generous hang guard (not a performance assertion).
+(headings modulo 2π), and ``cuikslam solve`` must exit 0 without a traceback (one solve,
+by the command, for both checks). The others are consistent logs that crashed or ran for
+minutes: they must exit 0 without a traceback, within a generous hang guard (not a
+performance assertion: the default work budget bounds every solve).
 """
 
 from __future__ import annotations
@@ -18,8 +19,10 @@ from pathlib import Path
 import pytest
 
 from _exact import MP
+from cuikslam.cli.warm_up import PARTS, warm_part
 from cuikslam.hypotheses import solve_unknown
 from cuikslam.log import Log, read_log_file
+from cuikslam.results.io import read_result_file
 from cuikslam.solver import solve
 from worlds import (
     SEARCH_LEVELS,
@@ -37,18 +40,20 @@ WITH_TRUTH = sorted(p for p in REPRO.glob("*.jsonl") if p.with_suffix(".truth.js
 WITHOUT_TRUTH = sorted(p for p in REPRO.glob("*.jsonl") if p not in WITH_TRUTH)
 CASES = WITH_TRUTH + sorted(FOUND.glob("*.jsonl"))
 """Every log with a truth file."""
-HANG_GUARD = 60
-"""Seconds before a subprocess counts as hung (the issue asks for 5 s end to end)."""
+HANG_GUARD = 300
+"""Seconds before a subprocess counts as hung (the issue asks for 5 s end to end; each
+solve takes a few seconds of CPU, so only a hang, not a busy machine, reaches this)."""
 QUICK = ["signed-zero-crash.jsonl", "subnormal-crash.jsonl"]
 """Logs of a pose or two, solved in the test process too."""
 
 
 @pytest.fixture(scope="module", autouse=True)
 def _compiled() -> None:
-    """Compile the kernels first: a cold numba cache costs tens of seconds, which the solve's
-    time budget would count (a cold start is not what these tests are about)."""
-    for path in CASES:
-        solve(read_log_file(path), work_budget=None, certify_limit=0)
+    """Compile the kernels into numba's cache first, so that the commands run here load
+    them (a cold cache costs tens of seconds in the first one; not what these tests are
+    about)."""
+    for part in PARTS:
+        warm_part(part)
 
 
 def truth_of(log_path: Path) -> Truth:
@@ -98,19 +103,6 @@ def test_reproducer_measures_its_world(path: Path) -> None:
     assert log_violations(read_log_file(path), truth_of(path)) == []
 
 
-@pytest.mark.parametrize("path", CASES, ids=lambda p: p.stem)
-def test_reproducer_keeps_the_truth_with_default_options(path: Path) -> None:
-    log, truth = read_log_file(path), truth_of(path)
-    solution = solve(log)
-    assert not solution.refuted, solution.messages
-    index = true_index(solution, truth, named_ids(log))
-    assert index >= 0, (
-        f"the true correspondence is not among {len(solution.hypotheses)} survivors "
-        f"(complete: {solution.complete}; {solution.messages})"
-    )
-    assert truth_misses(solution.hypotheses[index], truth, named_ids(log)) == []
-
-
 @pytest.mark.parametrize("level", sorted(SEARCH_LEVELS))
 @pytest.mark.parametrize("path", CASES, ids=lambda p: p.stem)
 def test_reproducer_keeps_the_truth_at_every_level(path: Path, level: str) -> None:
@@ -124,14 +116,24 @@ def test_reproducer_keeps_the_truth_at_every_level(path: Path, level: str) -> No
 
 
 @pytest.mark.parametrize("path", CASES, ids=lambda p: p.stem)
-def test_reproducer_cli_checks_the_truth(path: Path, tmp_path: Path) -> None:
-    truth = path.with_name(path.stem + ".truth.json")
-    result = run_cli("solve", path, "--json", tmp_path / "out.json", "--truth", truth, cwd=tmp_path)
+def test_reproducer_keeps_the_truth_with_default_options(path: Path, tmp_path: Path) -> None:
+    """``cuikslam solve --truth`` passes its own truth check, and its result, checked here
+    against the exact truth, keeps the true correspondence with the truth in every box."""
+    truth_file = path.with_name(path.stem + ".truth.json")
+    out = tmp_path / "out.json"
+    result = run_cli("solve", path, "--json", out, "--truth", truth_file, cwd=tmp_path)
     assert "Traceback" not in result.stderr, result.stderr
     report = result.stdout[result.stdout.find("truth check") :][:2000]
     assert result.returncode == 0, report + result.stderr[-2000:]
     assert "all contain the truth" in result.stdout, report
-    assert (tmp_path / "out.json").is_file()
+    log, truth, solution = read_log_file(path), truth_of(path), read_result_file(out)
+    assert not solution.refuted, solution.messages
+    index = true_index(solution, truth, named_ids(log))
+    assert index >= 0, (
+        f"the true correspondence is not among {len(solution.hypotheses)} survivors "
+        f"(complete: {solution.complete}; {solution.messages})"
+    )
+    assert truth_misses(solution.hypotheses[index], truth, named_ids(log)) == []
 
 
 @pytest.mark.parametrize("path", WITHOUT_TRUTH, ids=lambda p: p.stem)
