@@ -74,7 +74,8 @@ COSTS = {
     "bisection_part": 50.0,
     "lp_flop": 2.0e-4,
     "world_evaluation": 800.0,
-    "jacobian_entry": 0.08,
+    "jacobian_entry": 0.05,
+    "factor_flop": 0.012,
     "verification": 1500.0,
     "interval_entry": 0.35,
 }
@@ -88,9 +89,11 @@ its inverse of the active constraints, ``2 n**3``, and each pivot's update, ``2 
 plus the matrix's entries, for n columns), whose cost grows faster than its LP's size on
 the windows of a long log; the witness search's evaluation in its sparse world form
 (:mod:`cuikslam.hypotheses.witness._world`): a fixed cost, and one per entry of its
-Jacobian (computed, multiplied into the normal equations, factorised) and per (pose,
-landmark) pair of the sensor's negative information; and its rigorous verification: a
-fixed cost, and one per interval operation. Measured so that a unit is about a
+Jacobian (computed, multiplied into the normal equations) and per (pose, landmark) pair
+of the sensor's negative information, and a multiply-add of each sparse factorisation of
+its normal equations (:func:`cuikslam.hypotheses.witness._levenberg.factor_work`, whose
+fill grows faster than the log); and its rigorous verification: a fixed cost, and one per
+interval operation. Measured so that a unit is about a
 microsecond of this machine in each stage (``benchmarks/bench_budget.py``,
 ``benchmarks/bench_witness.py``); what matters is only that each is a fixed count of the
 same work on every machine."""

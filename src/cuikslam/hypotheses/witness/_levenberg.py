@@ -20,7 +20,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
-from scipy.sparse.linalg import splu
+from scipy.sparse.linalg import SuperLU, splu
 
 ResidualsAndJacobian = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 
@@ -47,12 +47,15 @@ def bounded_least_squares(
     ub: np.ndarray,
     max_nfev: int,
     tol: float,
+    factorised: Callable[[float], None] | None = None,
 ) -> np.ndarray:
     """A local minimiser of ``|r(z)|^2`` with ``lb <= z <= ub``, from ``z0``.
 
-    ``residuals(z)`` returns ``(r, J)`` (finite). Stops after ``max_nfev`` evaluations, or
-    when a taken step changes the cost by less than ``tol`` of it or moves ``z`` by less than
-    ``tol`` of its norm, or when the gradient of the free parameters is below ``tol``.
+    ``residuals(z)`` returns ``(r, J)`` (finite; ``J`` dense or sparse). Stops after
+    ``max_nfev`` evaluations, or when a taken step changes the cost by less than ``tol`` of
+    it or moves ``z`` by less than ``tol`` of its norm, or when the gradient of the free
+    parameters is below ``tol``. ``factorised`` is told the multiply-adds of each sparse
+    factorisation (:func:`factor_work`), whose cost grows faster than the matrix.
 
     A minimum at (3, -1), the second coordinate held at its lower bound 0:
 
@@ -79,7 +82,7 @@ def bounded_least_squares(
         while True:
             if not lam < _LAM_LIMITS[1]:
                 return z
-            step = _damped_step(h_free, g_free, lam * d)
+            step = _damped_step(h_free, g_free, lam * d, factorised)
             if step is None:
                 lam, nu = lam * nu, nu * 2.0
                 continue
@@ -128,18 +131,25 @@ def _restrict(H: np.ndarray | sp.csc_matrix, free: np.ndarray) -> np.ndarray | s
 
 
 def _damped_step(
-    h: np.ndarray | sp.csc_matrix, g: np.ndarray, damping: np.ndarray
+    h: np.ndarray | sp.csc_matrix,
+    g: np.ndarray,
+    damping: np.ndarray,
+    factorised: Callable[[float], None] | None = None,
 ) -> np.ndarray | None:
     """The solution of ``(h + diag(damping)) step = -g``, or None when it cannot be had
-    (Cholesky for a dense ``h``, a sparse LU for a sparse one)."""
+    (Cholesky for a dense ``h``, a sparse LU for a sparse one, whose multiply-adds
+    ``factorised`` is told)."""
     if sp.issparse(h):
         a = sp.csc_matrix(h + sp.diags(damping))
         if not np.all(np.isfinite(a.data)):
             return None
         try:
-            step = -splu(a, **_SPLU).solve(g)
+            lu = splu(a, **_SPLU)
         except RuntimeError:  # singular
             return None
+        if factorised is not None:
+            factorised(factor_work(lu))
+        step = -lu.solve(g)
         return step if np.all(np.isfinite(step)) else None
     a = h + np.diag(damping)
     if not np.all(np.isfinite(a)):
@@ -149,3 +159,16 @@ def _damped_step(
     except LinAlgError:
         return None
     return step if np.all(np.isfinite(step)) else None
+
+
+def factor_work(lu: SuperLU) -> float:
+    """Multiply-adds of a sparse LU factorisation, counted as the entries of each
+    pivot's column of ``L`` times those of its row of ``U`` (diagonal included).
+
+    >>> a = sp.csc_matrix(np.array([[4.0, 1.0, 0.0], [1.0, 4.0, 1.0], [0.0, 1.0, 4.0]]))
+    >>> factor_work(splu(a, **_SPLU))  # pivots of 2 x 2, 2 x 2 and 1 x 1 entries
+    9.0
+    """
+    below = np.diff(sp.csc_matrix(lu.L).indptr).astype(float)
+    right = np.diff(sp.csr_matrix(lu.U).indptr).astype(float)
+    return float(below @ right)

@@ -200,9 +200,9 @@ class WorldForm:
             self.entries + pairs
         )
         """Work units of one evaluation with its least-squares step: its Jacobian's entries
-        (computed, multiplied into the normal equations, factorised), and every (pose,
-        landmark) pair, whose sensor violations are computed before the focused ones are
-        kept."""
+        (computed, multiplied into the normal equations), and every (pose, landmark) pair,
+        whose sensor violations are computed before the focused ones are kept. A sparse
+        factorisation is counted apart, by its multiply-adds."""
         self.check_cost = 0.5 * COSTS["world_evaluation"] + COSTS["jacobian_entry"] * (
             m.n_checks + m.n_params + pairs
         )

@@ -193,7 +193,10 @@ def _solve_margins(
             r, J = world.residuals(full(zz), True, scale)
             return r, J
 
-        return bounded_least_squares(both, z, lb, ub, max_nfev, tol)
+        return bounded_least_squares(both, z, lb, ub, max_nfev, tol, factorised)
+
+    def factorised(multiply_adds: float) -> None:
+        spend(meter.deadline, COSTS["factor_flop"] * multiply_adds)
 
     z = np.clip(fixed[free], lb, ub)
     try:
