@@ -31,6 +31,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from cuikslam.budget import COSTS
+from cuikslam.hypotheses.witness._levenberg import fill_reducing_order
 from cuikslam.hypotheses.witness._numeric import finite, half_width, midpoint, wrap_near
 from cuikslam.hypotheses.witness._sensor import SENSOR_MARGIN, distance, sensor_terms
 
@@ -182,6 +183,7 @@ class WorldForm:
         self.n_free = int(self.free.sum())
         self._column = np.cumsum(self.free) - 1
         self._pattern: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._ordering: np.ndarray | None = None
         self._set_costs(len(odo), len(rel))
 
     def _set_costs(self, n_odo: int, n_rel: int) -> None:
@@ -345,7 +347,35 @@ class WorldForm:
         if self.n_free <= DENSE_COLUMNS:
             flat = rows * self.n_free + cols
             return r, np.bincount(flat, weights=vals, minlength=r.size * self.n_free).reshape(shape)
-        return r, sp.csr_matrix((vals, (rows, cols)), shape=shape)
+        J = sp.csr_matrix((vals, (rows, cols)), shape=shape)
+        J.eliminate_zeros()  # the rows of hinges met: fewer entries in the normal equations
+        return r, J
+
+    def ordering(self) -> tuple[np.ndarray | None, float]:
+        """The order in which the least squares' factorisations eliminate the free
+        variables (None when the Jacobian is dense), computed on first use from the
+        pattern of every row, and the work units of computing it (0 once known)."""
+        if self.n_free <= DENSE_COLUMNS:
+            return None, 0.0
+        if self._ordering is not None:
+            return self._ordering, 0.0
+        if self._pattern is None:
+            self._values(np.zeros(self.n_vars), jacobian=True)
+        assert self._pattern is not None
+        _, rows, cols = self._pattern
+        m = self.model
+        pairs = m._sensor_rows if m.sensor is not None and m.n_landmarks else np.zeros(0, int)
+        pose, landmark = np.divmod(pairs, max(m.n_landmarks, 1))
+        k = rows.max(initial=-1) + 1 + np.arange(len(pairs))
+        s_cols = np.concatenate([3 * pose[:, None] + np.arange(3),
+                                 self.landmark_var0 + 2 * landmark[:, None] + np.arange(2)],
+                                axis=1)  # fmt: skip
+        s_keep = self.free[s_cols]
+        rows = np.concatenate([rows, np.repeat(k, 5).reshape(-1, 5)[s_keep]])
+        cols = np.concatenate([cols, self._column[s_cols[s_keep]]])
+        jp = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(rows.max() + 1, self.n_free))
+        self._ordering, work = fill_reducing_order(jp.T @ jp)
+        return self._ordering, self.evaluation_cost + COSTS["factor_flop"] * work
 
     def _sensor(
         self, w: np.ndarray, jacobian: bool

@@ -193,7 +193,9 @@ def _solve_margins(
             r, J = world.residuals(full(zz), True, scale)
             return r, J
 
-        return bounded_least_squares(both, z, lb, ub, max_nfev, tol, factorised)
+        ordering, work = world.ordering()
+        spend(meter.deadline, work)
+        return bounded_least_squares(both, z, lb, ub, max_nfev, tol, factorised, ordering)
 
     def factorised(multiply_adds: float) -> None:
         spend(meter.deadline, COSTS["factor_flop"] * multiply_adds)
