@@ -149,6 +149,9 @@ class WorldForm:
         self.odo_params = np.array([st.params for st in odo], dtype=np.int64).reshape(-1, 2).T
         self.rel_params = np.array([st.params for st in rel], dtype=np.int64).reshape(-1, 3).T
         self.param_mid = midpoint(m.param_lo, m.param_hi, 0.0)
+        sensor = [st for st in rel if st.child >= m.n_poses]  # each from its robot pose
+        self.sensor_steps = _ends(sensor)
+        self.sensor_params = np.array([st.params for st in sensor], dtype=np.int64).reshape(-1, 3).T
         step_params = np.concatenate([*self.odo_params, *self.rel_params])
         step_angular = np.repeat([True, False, False, False, True], [len(odo)] * 2 + [len(rel)] * 3)
         self.lo = np.concatenate([m.check_lo, m.param_lo[step_params]])
@@ -217,10 +220,28 @@ class WorldForm:
         every check and (pose, landmark) pair in interval arithmetic."""
 
     # ----------------------------------------------------------------- conversions
-    def from_params(self, p: np.ndarray) -> np.ndarray:
-        """The world of the model's parameters ``p`` (its forward kinematics)."""
-        F, _ = self.model.frames(p)
-        return np.concatenate([F.ravel(), self.model.landmarks(p).ravel()])
+    def from_params(self, p: np.ndarray, poses_xyt: np.ndarray | None = None) -> np.ndarray:
+        """The world of the model's parameters ``p`` (its forward kinematics), with the
+        robot poses moved to ``poses_xyt`` (rows in the model's order) where those are
+        finite, and the sensor frames with them.
+
+        The centres of narrowed boxes are a better start than the forward kinematics of
+        the parameters they give, whose error grows along the log: on the whole Lost in
+        the Woods run (1,262 poses) the search from the latter was stuck 15 half-widths
+        outside a bearing after 230 evaluations, while the former met every check after
+        the 9 of its centre estimate."""
+        m = self.model
+        F, _ = m.frames(p)
+        if poses_xyt is not None:
+            F = F.copy()
+            known = np.all(np.isfinite(poses_xyt), axis=1)
+            F[: m.n_poses][known] = poses_xyt[known]
+            (src, dst), (ka, kb, kc) = self.sensor_steps, self.sensor_params
+            c, s = np.cos(F[src, 2]), np.sin(F[src, 2])
+            F[dst, 0] = F[src, 0] + p[ka] * c - p[kb] * s
+            F[dst, 1] = F[src, 1] + p[ka] * s + p[kb] * c
+            F[dst, 2] = F[src, 2] + p[kc]
+        return np.concatenate([F.ravel(), m.landmarks(p).ravel()])
 
     def to_params(self, w: np.ndarray) -> np.ndarray:
         """The model's parameters that reproduce the world ``w`` as nearly as they can:

@@ -25,7 +25,7 @@ import numpy as np
 
 from cuikslam.budget import COSTS, Budget, OutOfTime, blas_single_thread, expired, spend
 from cuikslam.hypotheses.witness._levenberg import bounded_least_squares
-from cuikslam.hypotheses.witness._numeric import finite
+from cuikslam.hypotheses.witness._numeric import finite, midpoint
 from cuikslam.hypotheses.witness._world import WorldForm
 from cuikslam.hypotheses.witness.model import (
     HypothesisModel,
@@ -165,15 +165,16 @@ def _solve_margins(
     x0: np.ndarray,
     meter: _Meter,
     centre: bool = True,
+    poses_xyt: np.ndarray | None = None,
 ) -> tuple[np.ndarray, float, np.ndarray | None]:
-    """Least squares in the world form from the world of parameters ``x0``: the centre
-    estimate (when ``centre``), then the hinge residuals at ``MARGIN_SCALES`` of the aimed
-    margins; returns (params, largest hinge residual of the model, verified box or None).
-    Every ``VERIFY_EVERY``-th point evaluated is tried too: the first that verifies ends
-    the search."""
+    """Least squares in the world form from the world of parameters ``x0`` (its robot
+    poses at ``poses_xyt`` where given): the centre estimate (when ``centre``), then the
+    hinge residuals at ``MARGIN_SCALES`` of the aimed margins; returns (params, largest
+    hinge residual of the model, verified box or None). Every ``VERIFY_EVERY``-th point
+    evaluated is tried too: the first that verifies ends the search."""
     free = world.free
     lb, ub = world.bounds()
-    fixed = world.from_params(x0)
+    fixed = world.from_params(x0, poses_xyt)
 
     def full(z: np.ndarray) -> np.ndarray:
         w = fixed.copy()
@@ -258,17 +259,19 @@ class WitnessSearch:
         if poses_box is None and landmarks_box is None:
             self.tried = 1  # no box centres to start from
 
-    def _start(self, k: int) -> tuple[np.ndarray, bool]:
+    def _start(self, k: int) -> tuple[np.ndarray, bool, np.ndarray | None]:
+        """Start ``k``: parameters, whether to begin with the centre estimate, and the
+        robot poses to put the world's at (the boxes' centres, for the first)."""
         m = self.model
         if k == 0:
-            return m.initial_params(
-                self.poses_box, self.landmarks_box, deadline=self.deadline
-            ), True
+            boxes = m.pose_boxes(self.poses_box)
+            centres = None if boxes is None else midpoint(boxes[..., 0], boxes[..., 1])
+            params = m.initial_params(self.poses_box, self.landmarks_box, deadline=self.deadline)
+            return params, True, centres
         if k == 1:
-            return m.initial_params(deadline=self.deadline), True
-        return m.initial_params(
-            None, self.landmarks_box, rng=self.rng, deadline=self.deadline
-        ), False
+            return m.initial_params(deadline=self.deadline), True, None
+        params = m.initial_params(None, self.landmarks_box, rng=self.rng, deadline=self.deadline)
+        return params, False, None
 
     def run(self, starts: int, quota: int | None = None) -> None:
         """Try up to ``starts`` more starting points (fewer when it succeeds or a budget
@@ -295,8 +298,8 @@ class WitnessSearch:
                 try:
                     spend(self.deadline, COSTS["start"])
                     meter.tick()  # a start counts as an evaluation, even one that fails
-                    x0, centre = self._start(self.tried - 1)
-                    p, residual, box = _solve_margins(model, self.world, x0, meter, centre)
+                    x0, centre, poses = self._start(self.tried - 1)
+                    p, residual, box = _solve_margins(model, self.world, x0, meter, centre, poses)
                 except _OverQuota:
                     stats.starts -= 1
                     self.tried -= 1
