@@ -73,6 +73,11 @@ COSTS = {
     "start": 1000.0,
     "bisection_part": 50.0,
     "lp_flop": 2.0e-4,
+    "world_evaluation": 800.0,
+    "jacobian_entry": 0.05,
+    "factor_flop": 0.012,
+    "verification": 1500.0,
+    "interval_entry": 0.35,
 }
 """Work units of one unit of work of each stage: a narrowing operator applied once; each
 row and column of an LP solved (an LP of r rows and c columns costs ``(r + c) *
@@ -82,9 +87,16 @@ evaluation and of a start of the witness search; a part of a bisection narrowed 
 its operators); a multiply-add of the dense LP kernel (:mod:`cuikslam.narrowing._simplex`:
 its inverse of the active constraints, ``2 n**3``, and each pivot's update, ``2 n**2``
 plus the matrix's entries, for n columns), whose cost grows faster than its LP's size on
-the windows of a long log. Measured so that a unit is about a microsecond of this machine in
-each stage (``benchmarks/bench_budget.py``); what matters is only that each is a fixed
-count of the same work on every machine."""
+the windows of a long log; the witness search's evaluation in its sparse world form
+(:mod:`cuikslam.hypotheses.witness._world`): a fixed cost, and one per entry of its
+Jacobian (computed, multiplied into the normal equations) and per (pose, landmark) pair
+of the sensor's negative information, and a multiply-add of each sparse factorisation of
+its normal equations (:func:`cuikslam.hypotheses.witness._levenberg.factor_work`, whose
+fill grows faster than the log); and its rigorous verification: a fixed cost, and one per
+interval operation. Measured so that a unit is about a
+microsecond of this machine in each stage (``benchmarks/bench_budget.py``,
+``benchmarks/bench_witness.py``); what matters is only that each is a fixed count of the
+same work on every machine."""
 STRENGTHEN_SHARE = 0.7
 """Fraction of the budget left after hull narrowing that the stronger level may use; the
 witness search gets the rest (and whatever the stronger level did not need)."""

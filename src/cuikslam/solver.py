@@ -43,15 +43,13 @@ __all__ = ["budget_message", "hypothesis_from_graph", "solve"]
 ProgressCallback = Callable[[int, int], None]
 """Called with (done, total) as a long solve advances."""
 
-CERTIFY_MAX_POSES = 250
-"""No witness search beyond this many poses (a least-squares problem with a dense Jacobian:
-its time and memory grow with the square of the log). Measured on 2026-11-26: a dense
-100-pose world's survivor proven in 1.2 s within the default budget, a 97-pose MRCLAM
-window's true hypothesis in 0.8 s, the best-ranked survivor of a 201-pose Lost in the Woods
-window in 2.6 s (with ``lsmr``, :func:`~cuikslam.hypotheses.witness.find.tr_solver_for`);
-a 401-pose window took 20 s and 1 GB, and the whole 1,262-pose run made 3 evaluations in
-219 s (before ``lsmr``). Within the cap the work budget (or, without one, the witness'
-evaluation limit) bounds the search."""
+CERTIFY_MAX_POSES = 2000
+"""No witness search beyond this many poses. The search minimises in a sparse form
+(:mod:`cuikslam.hypotheses.witness._world`), whose evaluations grow with the log (a
+200-pose world proven in 0.2 s, 1,000 poses in 0.7 s, 2,000 in 2.7 s of CPU, 250 MB), but
+a log with loop-closing odometry polishes its closures and picks its verification's pivots
+on the model's dense Jacobian (frames x parameters: 0.2 GB at 2,000 poses). Within the cap
+the work budget (or, without one, the witness' evaluation limit) bounds the search."""
 SEARCH_SHARE = 0.8
 """Fraction of the budget the correspondence search (with its survivors' stronger
 level) may use; the witness search gets the rest, and whatever the search did not need."""
@@ -125,8 +123,8 @@ def solve(
     landmark, the correspondence search of :func:`cuikslam.hypotheses.solve_unknown` runs.
     The ``certify_limit`` best-ranked hypotheses (all reported ones by default) are then
     certified: a solution point is searched and verified in interval arithmetic, making
-    them *proven consistent* (the witness search, a dense problem, is skipped beyond
-    ``CERTIFY_MAX_POSES`` poses).
+    them *proven consistent* (the witness search is skipped beyond ``CERTIFY_MAX_POSES``
+    poses).
 
     Parameters
     ----------
@@ -218,7 +216,7 @@ def solve(
         solution = _solve_known(log, consistency, options.rtol, progress, deadline, options.threads)
     certify_limit = options.certify_limit
     if n_poses > CERTIFY_MAX_POSES and certify_limit != 0 and solution.hypotheses:
-        certify_limit = 0  # the witness search is a dense least-squares problem
+        certify_limit = 0  # see CERTIFY_MAX_POSES
         solution.messages.append(
             f"no witness search beyond {CERTIFY_MAX_POSES} poses (this log has {n_poses}): "
             "the hypotheses stay 'not refuted', neither proven consistent nor impossible"

@@ -17,6 +17,8 @@ The stages, one module each:
 * :mod:`.verify`: :func:`verify_witness`, the rigorous decision: interval forward
   kinematics from a parameter point, and a Poincaré–Miranda box around it when loop
   closures make equalities;
+* :mod:`._world`: the same hypothesis in its *world form* (every frame and landmark a
+  parameter, every motion a check: a sparse Jacobian), where the search minimises;
 * :mod:`.find`: :func:`find_witness`, the local search for a point that verifies;
 * :mod:`.certification`: :func:`certify`, which runs it on every hypothesis of a
   :class:`~cuikslam.results.Solution`, sharing one budget;

@@ -27,8 +27,9 @@ from cuikslam.hypotheses.witness._numeric import (
 PoseBoxes = Mapping[int, np.ndarray] | np.ndarray | None
 LandmarkBoxes = Mapping[str, np.ndarray] | np.ndarray | None
 
-LANDMARK_FIT_COST = 100 * COSTS["residual"]
-"""Work units of one landmark's least-squares start (at most 16 starts of 50 evaluations)."""
+LANDMARK_FITS = 16
+"""Least-squares fits (each from one observation's projection, of at most 50 evaluations)
+that place a landmark no box places."""
 
 
 def _by_id(
@@ -160,26 +161,27 @@ class Starts:
             if np.any(np.isnan(L[j])):
                 if expired(deadline):
                     raise OutOfTime
-                L[j] = self._fit_landmark(j, P, rng)
-                spend(deadline, LANDMARK_FIT_COST)
+                L[j], evaluated = self._fit_landmark(j, P, rng)
+                spend(deadline, evaluated)
         L = np.where(np.isnan(L), 0.0, L)
         p[self.landmark_param0 :] = L.ravel()
         return p
 
     def _fit_landmark(
         self, j: int, P: np.ndarray, rng: np.random.Generator | None = None
-    ) -> np.ndarray:
+    ) -> tuple[np.ndarray, float]:
         """Where the observations of landmark ``j`` put it, seen from the poses ``P``: the
         best of small least-squares fits started from each observation's midpoint
         projection (at a few guessed ranges when the range is unmeasured, a few guessed
-        bearings when the bearing is)."""
+        bearings when the bearing is); and the work units spent (each evaluation of the
+        fits: a fixed cost and one per observation)."""
         rows = []
         for q in np.flatnonzero(self.obs_landmark == j):
             i = int(self.obs_pose[q])
             rr, bb = self._obs_mid(q, "range"), self._obs_mid(q, "bearing")
             rows.append((i, rr, bb, self._obs_half(q, "range"), self._obs_half(q, "bearing")))
         if not rows:
-            return np.zeros(2)
+            return np.zeros(2), 0.0
         starts = []
         for i, rr, bb, _, _ in rows:
             ranges = [rr] if rr is not None else [1.0, 3.0, 10.0]
@@ -191,7 +193,7 @@ class Starts:
                     a = P[i, 2] + b
                     starts.append(finite(P[i, :2] + r * np.array(cos_sin(a))))
         if len(rows) == 1 and rows[0][1] is not None and rows[0][2] is not None:
-            return starts[0]
+            return starts[0], 0.0
         pose_i = np.array([r[0] for r in rows])
         rng_mid = np.array([np.nan if r[1] is None else r[1] for r in rows])
         brg_mid = np.array([np.nan if r[2] is None else r[2] for r in rows])
@@ -210,7 +212,8 @@ class Starts:
             return finite(np.concatenate([res_r, res_b / brg_w[has_b]]))
 
         best, best_cost = starts[0], math.inf
-        for xy in starts[:16]:
+        evaluations = 0
+        for xy in starts[:LANDMARK_FITS]:
             try:
                 from scipy.optimize import least_squares  # loaded when a witness is sought
 
@@ -218,18 +221,24 @@ class Starts:
                     fit = least_squares(residuals, xy, method="trf", max_nfev=50)
             except ValueError:
                 continue
+            evaluations += fit.nfev + 2 * fit.njev  # its Jacobian by differences: 2 more
             if fit.cost < best_cost and np.all(np.isfinite(fit.x)):
                 best, best_cost = fit.x, fit.cost
-        return np.asarray(best, dtype=float)
+        work = evaluations * (COSTS["evaluation"] + COSTS["jacobian_entry"] * len(rows))
+        return np.asarray(best, dtype=float), work
 
     def _obs_row(self, q: int, kind: str) -> int | None:
         """The check row of observation ``q``'s ``"range"`` or ``"bearing"`` (None when it
         is not measured)."""
-        sel = self.range_sel if kind == "range" else self.bearing_sel
-        pos = np.flatnonzero(sel == q)
-        if len(pos) == 0:
-            return None
-        return int(pos[0]) + (0 if kind == "range" else len(self.range_sel))
+        rows = getattr(self, "_obs_rows", None)
+        if rows is None:  # each observation's rows, once (a search per call was quadratic)
+            n, r, b = len(self.obs_pose), len(self.range_sel), len(self.bearing_sel)
+            rows = np.full((2, n), -1, dtype=np.int64)
+            rows[0, self.range_sel] = np.arange(r)
+            rows[1, self.bearing_sel] = r + np.arange(b)
+            self._obs_rows = rows
+        row = int(rows[0 if kind == "range" else 1, q])
+        return None if row < 0 else row
 
     def _obs_half(self, q: int, kind: str) -> float | None:
         row = self._obs_row(q, kind)

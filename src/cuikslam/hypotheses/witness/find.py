@@ -2,6 +2,9 @@
 
 :func:`find_witness` minimises how far each check falls short of lying a little inside its
 interval, from a few starting points, and keeps the first point that :mod:`.verify` proves.
+It minimises in the world form (:mod:`._world`: poses and landmarks as parameters, a sparse
+Jacobian, so an evaluation's cost grows with the log, not with its square) and verifies
+the model's parameters read off that world.
 :func:`~.certification.certify` runs that search on every hypothesis of a
 :class:`~cuikslam.results.Solution` and marks the proven ones.
 
@@ -9,12 +12,12 @@ The search has a budget: a deadline (checked at every evaluation of the residual
 stops within one least-squares step of it) and a work limit (``MAX_EVALUATIONS`` residual
 evaluations per hypothesis). When either runs out the hypothesis stays ``not refuted``:
 only a verified point ever makes it ``proven consistent``. The search runs with one BLAS
-thread (:func:`cuikslam.budget.blas_single_thread`): its matrices are tiny.
+thread (:func:`cuikslam.budget.blas_single_thread`): its dense matrices are small.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -22,13 +25,13 @@ import numpy as np
 
 from cuikslam.budget import COSTS, Budget, OutOfTime, blas_single_thread, expired, spend
 from cuikslam.hypotheses.witness._levenberg import bounded_least_squares
-from cuikslam.hypotheses.witness._numeric import finite
+from cuikslam.hypotheses.witness._numeric import finite, midpoint
+from cuikslam.hypotheses.witness._world import WorldForm
 from cuikslam.hypotheses.witness.model import (
     HypothesisModel,
     LandmarkBoxes,
     PoseBoxes,
     WitnessPoint,
-    aim_margin,
 )
 from cuikslam.hypotheses.witness.verify import verified_box
 from cuikslam.log.records import Log
@@ -48,27 +51,9 @@ Woods window (201 poses) survivors were proven after 9-60 evaluations instead of
 with 1e-14, and the fit's costs agreed with 1e-8's to 1e-3."""
 MARGIN_EVALUATIONS = 200
 """Evaluations of each hinge (aimed margins) least-squares run."""
-TR_SOLVER = "normal"
-"""Solver of the least squares on the model's dense Jacobians up to ``LSMR_ABOVE`` free
-parameters: :func:`~._levenberg.bounded_least_squares` (Cholesky of the normal equations).
-scipy's ``trf`` with an SVD per step (``"exact"``, used before) certified a 200-pose world
-in 23 s against 4.7 s."""
-LSMR_ABOVE = 500
-"""Beyond this many free parameters the least squares use scipy's iterative ``lsmr``
-instead (no factorisation): on the 201-pose Lost in the Woods window (1,237 parameters)
-the SVD took 0.45 s a step, and the best-ranked survivor was proven in 2.6 s instead of
-6.6 s."""
-
-
-def tr_solver_for(n_free: int) -> str:
-    """The trust-region solver for a least squares of ``n_free`` parameters.
-
-    >>> tr_solver_for(200), tr_solver_for(1237)
-    ('normal', 'lsmr')
-    """
-    return TR_SOLVER if n_free <= LSMR_ABOVE else "lsmr"
-
-
+MARGIN_SCALES = (0.1, 0.01, 0.001)
+"""The hinge runs aim at these fractions of the aimed margins (``AIM_FRACTION`` of each
+interval's half-width), one after the other while none verifies."""
 VERIFY_EVERY = 10
 """The least squares' points are verified every this many evaluations (and at the end)."""
 
@@ -134,12 +119,6 @@ class _Meter:
             raise _OverQuota
 
 
-def evaluation_cost(model: HypothesisModel) -> float:
-    """Work units of one evaluation of ``model``'s residuals and Jacobian: a fixed cost, and
-    one per parameter and per check, so that the work does not depend on the machine."""
-    return COSTS["evaluation"] + COSTS["residual"] * (model.n_params + model.n_checks)
-
-
 def _polish_equalities(model: HypothesisModel, p: np.ndarray, iterations: int = 4) -> np.ndarray:
     """A few Gauss-Newton steps on the closure equalities (minimum-norm, free parameters)."""
     if len(model.equality_rows) == 0:
@@ -159,132 +138,89 @@ def _polish_equalities(model: HypothesisModel, p: np.ndarray, iterations: int = 
     return p
 
 
-def _least_squares(
-    residuals: Any,
-    z0: np.ndarray,
-    meter: _Meter,
-    max_nfev: int,
-    columns: np.ndarray,
-    bounds: tuple[np.ndarray, np.ndarray],
-    probe: Callable[[np.ndarray], None] | None = None,
-    tr_solver: str = TR_SOLVER,
-    tol: float = 1e-14,
-) -> np.ndarray:
-    """Least squares on ``residuals(z, jacobian=True)`` (the Jacobian's columns ``columns``)
-    within ``bounds``, each evaluation counted by ``meter``; ``probe`` sees every point
-    evaluated (and may stop the search by raising); ``tr_solver`` is ``"normal"``
-    (:func:`~._levenberg.bounded_least_squares`) or scipy's trust-region solver, ``tol``
-    the tolerances (cost, step, gradient)."""
-    memo: dict[bytes, tuple[np.ndarray, Any]] = {}
-    all_columns = bool(np.all(columns))
-
-    def both(z: np.ndarray) -> tuple[np.ndarray, Any]:
-        key = z.tobytes()
-        if key not in memo:
-            meter.tick()
-            memo.clear()
-            if probe is not None:
-                probe(z)
-            r, J = residuals(z, jacobian=True)
-            memo[key] = (finite(r), finite(J if all_columns else J[:, columns], nan=0.0))
-        return memo[key]
-
-    if tr_solver == "normal":
-        return bounded_least_squares(both, z0, bounds[0], bounds[1], max_nfev, tol)
-    from scipy.optimize import least_squares  # loaded when a witness is sought
-
-    with np.errstate(all="ignore"):  # huge magnitudes overflow its steps: no witness, no warning
-        result = least_squares(
-            lambda z: both(z)[0], z0, jac=lambda z: both(z)[1],
-            bounds=bounds,
-            method="trf", xtol=tol, ftol=tol, gtol=tol, max_nfev=max_nfev,
-            tr_solver=tr_solver,
-        )  # fmt: skip
-    return result.x
-
-
-def _param_bounds(model: HypothesisModel) -> tuple[np.ndarray, np.ndarray]:
-    """The parameters' intervals, each narrowed by its aimed margin."""
-    margin = aim_margin(model.param_lo, model.param_hi)
-    lb = np.where(np.isfinite(model.param_lo), model.param_lo + margin, -np.inf)
-    ub = np.where(np.isfinite(model.param_hi), model.param_hi - margin, np.inf)
-    return lb, ub
-
-
 def _shortfall(model: HypothesisModel, p: np.ndarray) -> float:
+    """The largest hinge residual of the model's parameters ``p`` at the aimed margins."""
     res = model.margin_residuals(p)[0]
     return float(np.max(np.abs(res))) if len(res) else 0.0
 
 
+def _witness_of(
+    model: HypothesisModel, world: WorldForm, w: np.ndarray, deadline: Budget | None
+) -> tuple[np.ndarray, np.ndarray | None]:
+    """The model's parameters of the world point ``w`` (closures polished), and a verified
+    box around them or None. Verification is tried only when every check holds in
+    floating point: it could not succeed otherwise (each counted: ``world.check_cost``,
+    ``world.verify_cost``)."""
+    spend(deadline, world.check_cost)
+    p = _polish_equalities(model, world.to_params(w))
+    if not world.holds(p):
+        return p, None
+    spend(deadline, world.verify_cost)
+    return p, verified_box(model, p)
+
+
 def _solve_margins(
-    model: HypothesisModel, x0: np.ndarray, meter: _Meter, centre: bool = True
+    model: HypothesisModel,
+    world: WorldForm,
+    x0: np.ndarray,
+    meter: _Meter,
+    centre: bool = True,
+    poses_xyt: np.ndarray | None = None,
 ) -> tuple[np.ndarray, float, np.ndarray | None]:
-    """Least squares from ``x0``: the centre estimate (when ``centre``), then the hinge
-    residuals of the aimed margins; returns (params, largest hinge residual, verified box
-    or None). Every ``VERIFY_EVERY``-th point evaluated is verified too (at 100 poses the
-    hinge runs often pass through verifiable points long before they meet every aimed
-    margin): the first that verifies ends the search."""
-    free = model.free
-    solver = tr_solver_for(int(np.count_nonzero(free)))
-    lb, ub = _param_bounds(model)
-    lb, ub = lb[free], ub[free]
-    fixed = x0.copy()
+    """Least squares in the world form from the world of parameters ``x0`` (its robot
+    poses at ``poses_xyt`` where given): the centre estimate (when ``centre``), then the
+    hinge residuals at ``MARGIN_SCALES`` of the aimed margins; returns (params, largest
+    hinge residual of the model, verified box or None). Every ``VERIFY_EVERY``-th point
+    evaluated is tried too: the first that verifies ends the search."""
+    free = world.free
+    lb, ub = world.bounds()
+    fixed = world.from_params(x0, poses_xyt)
 
     def full(z: np.ndarray) -> np.ndarray:
-        q = fixed.copy()
-        q[free] = z
-        return q
-
-    def on_free(residuals: Any) -> Any:
-        return lambda z, jacobian: residuals(full(z), jacobian)
-
-    def shortfall(p: np.ndarray) -> float:
-        return _shortfall(model, p)
+        w = fixed.copy()
+        w[free] = z
+        return w
 
     seen = [0]
 
-    def probe(z: np.ndarray) -> None:
-        seen[0] += 1
-        if seen[0] % VERIFY_EVERY == 0:
-            q = _polish_equalities(model, full(z))
-            box = verified_box(model, q)
-            if box is not None:
-                raise _Verified(q, box)
+    def run(scale: float | None, z: np.ndarray, max_nfev: int, tol: float) -> np.ndarray:
+        def both(zz: np.ndarray) -> tuple[np.ndarray, Any]:
+            meter.tick()
+            seen[0] += 1
+            if seen[0] % VERIFY_EVERY == 0:
+                q, box = _witness_of(model, world, full(zz), meter.deadline)
+                if box is not None:
+                    raise _Verified(q, box)
+            r, J = world.residuals(full(zz), True, scale)
+            return r, J
 
-    z = np.clip(x0[free], lb, ub)
-    p = full(z)
-    if not np.any(free) or shortfall(p) == 0.0:
-        return p, shortfall(p), verified_box(model, p)
-    # the least-squares estimate first (smooth, so it escapes the hinges' flat spots), then
-    # the margins from there; when the aimed margins do not fit together (a thin solution
-    # set), aim closer to the bounds
+        ordering, work = world.ordering()
+        spend(meter.deadline, work)
+        return bounded_least_squares(both, z, lb, ub, max_nfev, tol, factorised, ordering)
+
+    def factorised(multiply_adds: float) -> None:
+        spend(meter.deadline, COSTS["factor_flop"] * multiply_adds)
+
+    z = np.clip(fixed[free], lb, ub)
     try:
+        p, box = _witness_of(model, world, full(z), meter.deadline)
+        if box is not None or not np.any(free):
+            return p, _shortfall(model, p), box
         if centre:
-            z = _least_squares(
-                on_free(model.centre_residuals), z, meter, CENTRE_EVALUATIONS, free, (lb, ub),
-                probe, solver, CENTRE_TOLERANCE,
-            )  # fmt: skip
-        candidates = [_polish_equalities(model, full(z))]
-        for scale in (1.0, 0.1, 0.01):
-
-            def hinge(q: np.ndarray, jacobian: bool, s: float = scale) -> Any:
-                return model.margin_residuals(q, jacobian, s)
-
-            z = _least_squares(
-                on_free(hinge), z, meter, MARGIN_EVALUATIONS, free, (lb, ub), probe, solver
-            )
-            p = _polish_equalities(model, full(z))
-            box = verified_box(model, p)
+            z = run(None, z, CENTRE_EVALUATIONS, CENTRE_TOLERANCE)
+        candidates = []
+        for scale in MARGIN_SCALES:
+            z = run(scale, z, MARGIN_EVALUATIONS, 1e-14)
+            p, box = _witness_of(model, world, full(z), meter.deadline)
             if box is not None:
-                return p, shortfall(p), box
+                return p, _shortfall(model, p), box
             candidates.append(p)
-            if shortfall(p) > _HOPELESS:
+            if float(np.max(world.residuals(full(z), False, scale)[0], initial=0.0)) > _HOPELESS:
                 break  # far outside some interval: smaller margins will not help
     except _Verified as found:
-        return found.p, shortfall(found.p), found.box
-    box = verified_box(model, candidates[0])
-    best = candidates[0] if box is not None else min(candidates, key=shortfall)
-    return best, shortfall(best), box
+        return found.p, _shortfall(model, found.p), found.box
+    best = min(candidates, key=lambda q: _shortfall(model, q))
+    return best, _shortfall(model, best), None
 
 
 class WitnessSearch:
@@ -312,27 +248,30 @@ class WitnessSearch:
         self.rng = np.random.default_rng(seed)
         self.deadline = deadline
         self.stats = statistics
-        self.meter = _Meter(deadline, max_evaluations, statistics, evaluation_cost(model))
+        model.focus_sensor(poses_box, landmarks_box)
+        self.world = WorldForm(model)
+        self.meter = _Meter(deadline, max_evaluations, statistics, self.world.evaluation_cost)
         self.tried = 0
         self.best: tuple[float, np.ndarray] | None = None
         self.point: WitnessPoint | None = None
         self.box: np.ndarray | None = None
         self.finished = bool(model.problems)
-        model.focus_sensor(poses_box, landmarks_box)
         if poses_box is None and landmarks_box is None:
             self.tried = 1  # no box centres to start from
 
-    def _start(self, k: int) -> tuple[np.ndarray, bool]:
+    def _start(self, k: int) -> tuple[np.ndarray, bool, np.ndarray | None]:
+        """Start ``k``: parameters, whether to begin with the centre estimate, and the
+        robot poses to put the world's at (the boxes' centres, for the first)."""
         m = self.model
         if k == 0:
-            return m.initial_params(
-                self.poses_box, self.landmarks_box, deadline=self.deadline
-            ), True
+            boxes = m.pose_boxes(self.poses_box)
+            centres = None if boxes is None else midpoint(boxes[..., 0], boxes[..., 1])
+            params = m.initial_params(self.poses_box, self.landmarks_box, deadline=self.deadline)
+            return params, True, centres
         if k == 1:
-            return m.initial_params(deadline=self.deadline), True
-        return m.initial_params(
-            None, self.landmarks_box, rng=self.rng, deadline=self.deadline
-        ), False
+            return m.initial_params(deadline=self.deadline), True, None
+        params = m.initial_params(None, self.landmarks_box, rng=self.rng, deadline=self.deadline)
+        return params, False, None
 
     def run(self, starts: int, quota: int | None = None) -> None:
         """Try up to ``starts`` more starting points (fewer when it succeeds or a budget
@@ -359,8 +298,8 @@ class WitnessSearch:
                 try:
                     spend(self.deadline, COSTS["start"])
                     meter.tick()  # a start counts as an evaluation, even one that fails
-                    x0, centre = self._start(self.tried - 1)
-                    p, residual, box = _solve_margins(model, x0, meter, centre)
+                    x0, centre, poses = self._start(self.tried - 1)
+                    p, residual, box = _solve_margins(model, self.world, x0, meter, centre, poses)
                 except _OverQuota:
                     stats.starts -= 1
                     self.tried -= 1

@@ -35,15 +35,17 @@ from collections.abc import Callable
 import numpy as np
 
 from cuikslam.budget import Budget, OutOfTime, blas_single_thread, expired
+from cuikslam.hypotheses.witness._dense import (
+    dense_least_squares,
+    evaluation_cost,
+    param_bounds,
+    tr_solver_for,
+)
 from cuikslam.hypotheses.witness.find import (
     CENTRE_TOLERANCE,
     WitnessStatistics,
-    _least_squares,
     _Meter,
     _OutOfWork,
-    _param_bounds,
-    evaluation_cost,
-    tr_solver_for,
 )
 from cuikslam.hypotheses.witness.model import HypothesisModel
 from cuikslam.log.records import Log
@@ -97,7 +99,7 @@ def fit_cost(
         marks = {lid: hypothesis.landmarks[k] for k, lid in enumerate(hypothesis.landmark_ids)}
         p0 = model.initial_params(poses, marks, deadline=deadline)
     free = model.free
-    lb, ub = _param_bounds(model)
+    lb, ub = param_bounds(model)
     if start is not None and start.shape == p0.shape:
         start = np.clip(start, lb, ub)
         start[~free] = p0[~free]
@@ -116,8 +118,8 @@ def fit_cost(
     z0 = np.clip(p0[free], lb, ub)
     try:
         with blas_single_thread(), np.errstate(all="ignore"):
-            z = _least_squares(
-                on_free, z0, meter, max_evaluations, free, (lb, ub),
+            z = dense_least_squares(
+                on_free, z0, meter.tick, max_evaluations, free, (lb, ub),
                 tr_solver=tr_solver_for(len(z0)), tol=CENTRE_TOLERANCE,
             )  # fmt: skip
     except _OutOfWork:  # counted one evaluation past the limit: keep the start's cost
