@@ -10,7 +10,7 @@ from __future__ import annotations
 import io
 import json
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable
 from typing import Any
 
 from cuikslam._json import loads_object
@@ -97,7 +97,7 @@ def parse_log_lines(lines: Iterable[str], path: str = "<memory>") -> Log:
     if isinstance(lines, str):
         lines = io.StringIO(lines)
     records = [_parse_line(raw, number, path) for number, raw in _numbered_records(lines)]
-    check_complete(records, path)
+    check_complete(len(records), any(isinstance(r, PosePrior) for r in records), path)
     check = OrderCheck(path)
     for record in records:
         check(record)
@@ -106,17 +106,17 @@ def parse_log_lines(lines: Iterable[str], path: str = "<memory>") -> Log:
     return log
 
 
-def check_complete(records: Sequence[Record], path: str = "<memory>") -> None:
-    """Refuse a whole log that has no record, or no pose prior.
+def check_complete(n_records: int, has_prior: bool, path: str = "<memory>") -> None:
+    """Refuse a whole log of ``n_records`` records that has none, or no pose prior.
 
     Raises
     ------
     InputFileError
         Naming ``path`` (the problem is the file's, so no line).
     """
-    if not records:
+    if not n_records:
         raise InputFileError(path, None, "the log is empty")
-    if not any(isinstance(r, PosePrior) for r in records):
+    if not has_prior:
         raise InputFileError(
             path,
             None,

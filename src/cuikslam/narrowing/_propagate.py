@@ -85,7 +85,9 @@ def propagate_buffered(
     on return, whatever the status, so allocating them once serves every call: a call
     costs what it touches, not the size of the graph. Returns ``(status, applications,
     n_applied)``; ``applied[:n_applied]`` lists every factor applied, once each, so the
-    caller knows which variables may have changed.
+    caller knows which variables may have changed. When ``max_applications`` stopped the
+    iteration, the factors still queued are left at the front of ``queue``, in queue
+    order, ended by -1 (``queue[0]`` is -1 otherwise): a caller can resume from them.
     """
     capacity = queue.shape[0]
     head_q = 0
@@ -134,8 +136,14 @@ def propagate_buffered(
                     queue[(head_q + size) % capacity] = g
                     size += 1
                     state[g] |= _QUEUED
+    left = np.empty(size if status == BUDGET_EXHAUSTED else 0, dtype=np.int64)
     for k in range(size):
-        state[queue[(head_q + k) % capacity]] = 0
+        f = queue[(head_q + k) % capacity]
+        state[f] = 0
+        if status == BUDGET_EXHAUSTED:
+            left[k] = f
+    queue[: len(left)] = left  # what the limit kept from running, to resume from
+    queue[len(left)] = -1
     for k in range(n_applied):
         f = applied[k]
         state[f] = 0
