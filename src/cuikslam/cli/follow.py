@@ -9,8 +9,7 @@ import sys
 import time
 from typing import TYPE_CHECKING, TextIO
 
-import numpy as np
-
+from cuikslam.budget import ONLINE_WORK_PER_POSE
 from cuikslam.cli._common import (
     EXIT_INTERRUPTED,
     EXIT_OK,
@@ -62,14 +61,19 @@ def add_follow_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--work-per-pose",
-        type=_positive,
-        default=None,
+        type=_work,
+        default=ONLINE_WORK_PER_POSE,
         metavar="UNITS",
-        help="work units the narrowing may spend when a pose is finished (what it could "
-        "not do waits for the next pose; the boxes stay sound); default: no limit",
+        help="work units the narrowing may spend before a finished pose's box is written "
+        "(the rest is done right after; the boxes stay sound); 'none': to the fixpoint "
+        "(default %(default)g)",
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no status line, no summary")
     p.set_defaults(func=run_follow)
+
+
+def _work(text: str) -> float | None:
+    return None if text.strip().lower() == "none" else _positive(text)
 
 
 def _positive(text: str) -> float:
@@ -103,6 +107,8 @@ class _Status:
 
 
 def _status_text(estimate: PoseEstimate) -> str:
+    import numpy as np
+
     with np.errstate(invalid="ignore"):
         x, y, theta = (f"{w:.3g}" for w in estimate.box[:, 1] - estimate.box[:, 0])
     return (

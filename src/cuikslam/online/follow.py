@@ -158,7 +158,9 @@ def follow(
 ) -> FollowReport:
     """Feed numbered log lines to ``session``; ``on_pose`` gets each finished pose's box.
 
-    The input ends with ``lines``, or with Ctrl-C (then the last pose is finished all the
+    The narrowing a pose's work limit left (:meth:`Session.settle`) is done right after
+    its box is given, or, with a ``rate``, while waiting for the next record. The input
+    ends with ``lines``, or with Ctrl-C (then the last pose is finished all the
     same, and ``interrupted`` is set), or once the records are proven inconsistent.
 
     Parameters
@@ -195,8 +197,9 @@ def follow(
             if record is None:
                 continue
             if pacer is not None:
+                due = pacer.due(record.time, clock())
+                session.settle(until=due)  # time to spare until the record falls due
                 ready = clock()
-                due = pacer.due(record.time, ready)
                 new_instant = record.time is not None and (
                     last_stamp is None or record.time > last_stamp
                 )
@@ -210,7 +213,10 @@ def follow(
                 if due > ready:
                     sleep(due - ready)
                 received = due
-            give(session.add(record, received=received))
+            estimate = session.add(record, received=received)
+            give(estimate)
+            if estimate is not None and pacer is None:
+                session.settle()  # the box is out: now the rest of the narrowing
             if session.refuted is not None:
                 report.refuted = session.refuted
                 return report

@@ -5,7 +5,10 @@ The arrays are those of :mod:`cuikslam.graph.encoding` with spare capacity: rows
 ``n_factors`` are ``NO_FACTOR`` and variables past ``n_variables`` belong to no factor, so
 the compiled propagation (:func:`cuikslam.narrowing._propagate.propagate_buffered`) runs
 on them as they are. Its work arrays are allocated once per capacity, so a narrowing costs
-what it wakes, not the size of the graph, and adding a record costs O(1) amortised.
+what it wakes, not the size of the graph, and adding a record costs O(1) amortised. The
+bounds only ever shrink, so each factor keeps the memory of its auxiliary intervals from
+one narrowing to the next (``keep_memory``): a propagation cut by a work limit and
+resumed later converges as one left to run.
 """
 
 from __future__ import annotations
@@ -75,9 +78,12 @@ class GrowingGraph:
             factors[:n] = self.factors[:n]
             entry_factor[:e], entry_next[:e] = self.entry_factor[:e], self.entry_next[:e]
         self.factors, self.entry_factor, self.entry_next = factors, entry_factor, entry_next
+        memory = fresh_memory(capacity)
+        if n:
+            memory[:n] = self._memory[:n]
         self._queue = np.empty(capacity + 1, dtype=np.int64)
         self._state = np.zeros(capacity, dtype=np.int8)
-        self._memory = fresh_memory(capacity)
+        self._memory = memory
         self._applied = np.empty(capacity, dtype=np.int64)
 
     def add_variables(self, lo: np.ndarray, hi: np.ndarray) -> int:
@@ -125,7 +131,7 @@ class GrowingGraph:
         status, applications, _ = propagate_buffered(
             self.lo, self.hi, self.factors, self.head, self.entry_factor, self.entry_next,
             touched, self.rtol, self.max_rounds, int(max_applications), self._queue,
-            self._state, self._memory, self._applied,
+            self._state, self._memory, self._applied, True,
         )  # fmt: skip
         left = int(np.argmax(self._queue < 0))  # the factors still queued come first
         return Narrowing(Status(status), int(applications), self._queue[:left].copy())

@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from cuikslam.budget import COSTS
+from cuikslam.budget import COSTS, ONLINE_WORK_PER_POSE
 from cuikslam.errors import InputFileError
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.graph.variables import Variables
@@ -38,7 +38,11 @@ from cuikslam.narrowing.propagation import DEFAULT_RTOL, Status
 from cuikslam.online.estimate import PoseEstimate
 from cuikslam.online.growing import GrowingGraph
 
-__all__ = ["Session", "warm_up"]
+__all__ = ["SETTLE_STEP", "Session", "warm_up"]
+
+SETTLE_STEP = 5_000.0
+"""Work units of each step of :meth:`Session.settle`, which checks the clock between
+steps."""
 
 
 class Session:
@@ -52,8 +56,10 @@ class Session:
         factor (as in a batch solve).
     work_per_pose : float, optional
         Work units (:mod:`cuikslam.budget`) the narrowing may spend when a pose is
-        finished; what it could not do is done at the next pose (sound either way, the
-        boxes are only wider meanwhile). None (default): to the fixpoint every time.
+        finished, before its box is given (default
+        :data:`~cuikslam.budget.ONLINE_WORK_PER_POSE`); what it could not
+        do waits for :meth:`settle` or the next pose (sound either way: a box given
+        earlier is only wider). None: to the fixpoint every time.
     path : str
         Where the records come from, for messages.
 
@@ -76,7 +82,7 @@ class Session:
         self,
         *,
         rtol: float = DEFAULT_RTOL,
-        work_per_pose: float | None = None,
+        work_per_pose: float | None = ONLINE_WORK_PER_POSE,
         path: str = "<session>",
     ) -> None:
         self.path = path
@@ -139,6 +145,17 @@ class Session:
         self.newest = None
         return estimate
 
+    def settle(self, until: float | None = None) -> bool:
+        """Narrow what the records so far still owe (work a limit deferred, records not
+        narrowed yet) to the fixpoint, in steps of ``SETTLE_STEP`` work units; with
+        ``until`` (a :func:`time.perf_counter` value), stop after the step that passes it.
+        Returns True at the fixpoint."""
+        while self.refuted is None and (self._touched or len(self._deferred)):
+            if until is not None and time.perf_counter() >= until:
+                return False
+            self._narrow(SETTLE_STEP)
+        return True
+
     # ------------------------------------------------------------------ output
     @property
     def has_poses(self) -> bool:
@@ -160,14 +177,14 @@ class Session:
         ValueError
             Once the records are proven inconsistent (:attr:`refuted`).
         """
-        self._narrow()
+        self.settle()
         self._raise_if_refuted()
         i = self._graph.pose_index(pose)
         return np.stack([self._grown.lo[i : i + 3], self._grown.hi[i : i + 3]], axis=-1)
 
     def landmark_box(self, landmark: str) -> np.ndarray:
         """The (2, 2) box of a landmark named so far (see :meth:`pose_box`)."""
-        self._narrow()
+        self.settle()
         self._raise_if_refuted()
         i = self._graph.landmark_index(landmark)
         return np.stack([self._grown.lo[i : i + 2], self._grown.hi[i : i + 2]], axis=-1)
@@ -187,7 +204,7 @@ class Session:
     def _finish_newest(self, received: float) -> PoseEstimate | None:
         if self.newest is None or self.refuted is not None:
             return None
-        self._narrow()
+        self._narrow(self.work_per_pose)
         if self.refuted is not None:
             return None
         pose = self.newest
@@ -244,13 +261,17 @@ class Session:
         if len(changed):
             self._touched.append(grown.factors_of(changed))
 
-    def _narrow(self) -> None:
-        """Narrow from every factor the records since the last call touched."""
-        if self.refuted is not None or not (self._touched or len(self._deferred)):
+    def _narrow(self, work: float | None = None) -> None:
+        """Narrow from every factor the records since the last call touched, within
+        ``work`` units (None: no limit)."""
+        if self.refuted is not None:
+            return
+        if not (self._touched or len(self._deferred)):
+            self._pending_lines = []
             return
         touched = np.concatenate([self._deferred, *self._touched])
         self._touched = []
-        limit = 2**62 if self.work_per_pose is None else int(self.work_per_pose / COSTS["operator"])
+        limit = 2**62 if work is None else max(1, int(work / COSTS["operator"]))
         result = self._grown.narrow(touched, limit)
         self.applications += result.applications
         self._deferred = result.deferred
