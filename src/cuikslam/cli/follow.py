@@ -22,6 +22,10 @@ from cuikslam.errors import InputFileError
 if TYPE_CHECKING:
     from cuikslam.online.estimate import PoseEstimate
     from cuikslam.online.follow import FollowReport
+    from cuikslam.simulate.truth import GroundTruth
+
+MISSES_SHOWN = 5
+"""Bounds that miss the truth shown by ``--truth``."""
 
 __all__ = ["add_follow_parser", "run_follow"]
 
@@ -67,6 +71,12 @@ def add_follow_parser(sub: argparse._SubParsersAction) -> None:
         help="work units the narrowing may spend before a finished pose's box is written "
         "(the rest is done right after; the boxes stay sound); 'none': to the fixpoint "
         "(default %(default)g)",
+    )
+    p.add_argument(
+        "--truth",
+        metavar="FILE",
+        help="ground-truth JSON: at the end, report whether every box written holds its "
+        "true pose (exit status 1 if not)",
     )
     p.add_argument("-q", "--quiet", action="store_true", help="no status line, no summary")
     p.set_defaults(func=run_follow)
@@ -150,6 +160,11 @@ def run_follow(args: argparse.Namespace) -> int:
     from cuikslam.online.follow import follow, log_lines
     from cuikslam.online.session import Session, warm_up
 
+    truth = None
+    if args.truth:
+        from cuikslam.simulate.truth import read_truth_file
+
+        truth = read_truth_file(args.truth)
     name = "<stdin>" if args.log == "-" else args.log
     source = sys.stdin if args.log == "-" else _open_log(args.log)
     warm_up()
@@ -157,7 +172,10 @@ def run_follow(args: argparse.Namespace) -> int:
     sink = _LazyFile(args.output)
     to_terminal = args.output is None and sys.stdout.isatty()
 
+    given: list[PoseEstimate] = []
+
     def on_pose(estimate: PoseEstimate) -> None:
+        given.append(estimate)
         if to_terminal:
             status.clear()
         sink.write_line(json.dumps(estimate.to_json()))
@@ -178,7 +196,24 @@ def run_follow(args: argparse.Namespace) -> int:
     if report.refuted is not None:
         print(f"cuikslam: {report.refuted}", file=sys.stderr)
         return EXIT_RESULT
+    if truth is not None and not _truth_holds(given, truth):
+        return EXIT_RESULT
     return EXIT_INTERRUPTED if report.interrupted else EXIT_OK
+
+
+def _truth_holds(given: list[PoseEstimate], truth: GroundTruth) -> bool:
+    """Say on stderr whether every box written holds its true pose."""
+    from cuikslam.online.estimate import check_estimates
+
+    report = check_estimates(given, truth)
+    poses = report.checked // 3
+    if report.ok:
+        print(f"cuikslam: truth: all {poses} boxes with a true pose hold it", file=sys.stderr)
+        return True
+    print(f"cuikslam: truth: {len(report.misses)} bounds miss it, e.g.:", file=sys.stderr)
+    for miss in report.misses[:MISSES_SHOWN]:
+        print(f"  {miss}", file=sys.stderr)
+    return False
 
 
 def _open_log(path: str) -> TextIO:
