@@ -185,7 +185,7 @@ def test_buffered_propagation_leaves_its_buffers_clean() -> None:
         status, count = propagate_arrays(*expected, *graph, everything, DEFAULT_RTOL, 1, 2**62)
         got = (wide_lo.copy(), start_hi.copy())
         status2, count2, n_applied = propagate_buffered(
-            *got, *graph, everything, DEFAULT_RTOL, 1, 2**62, queue, state, memory, applied
+            *got, *graph, everything, DEFAULT_RTOL, 1, 2**62, queue, state, memory, applied, False
         )
         assert (status, count) == (status2, count2) and n_applied > 0
         if status != INCONSISTENT:

@@ -39,6 +39,7 @@ from dataclasses import dataclass, field
 __all__ = [
     "COSTS",
     "DEFAULT_WORK_BUDGET",
+    "ONLINE_WORK_PER_POSE",
     "WORK_PER_POSE",
     "Budget",
     "Meter",
@@ -97,6 +98,10 @@ interval operation. Measured so that a unit is about a
 microsecond of this machine in each stage (``benchmarks/bench_budget.py``,
 ``benchmarks/bench_witness.py``); what matters is only that each is a fixed count of the
 same work on every machine."""
+ONLINE_WORK_PER_POSE = 5_000.0
+"""Work units an online session (:class:`cuikslam.online.Session`, ``cuikslam follow``)
+may spend narrowing before it gives a finished pose's box, by default: about 5 ms here;
+the rest of the narrowing follows the box (measured in ``docs/online.md``)."""
 STRENGTHEN_SHARE = 0.7
 """Fraction of the budget left after hull narrowing that the stronger level may use; the
 witness search gets the rest (and whatever the stronger level did not need)."""

@@ -70,8 +70,8 @@ def warm_part(part: str) -> float:
     Parameters
     ----------
     part : str
-        ``"narrowing"`` (fixpoint, ``lp`` level, the witness check's interval operations)
-        or ``"search"`` (the correspondence search's kernels).
+        ``"narrowing"`` (fixpoint, ``lp`` level, the witness check's interval operations,
+        the online session's calls) or ``"search"`` (the correspondence search's kernels).
 
     Returns
     -------
@@ -88,6 +88,9 @@ def warm_part(part: str) -> float:
     else:
         warm_up(False, lp=True)
         from cuikslam.interval import ops
+        from cuikslam.online.session import warm_up as warm_up_online
+
+        warm_up_online()  # the session's own calls (cuikslam follow)
 
         ops.sqrt, ops.angle_of  # noqa: B018  (compiled on first use; the witness check's)
     return time.perf_counter() - start

@@ -27,12 +27,16 @@ Modelling (each interval holds the truth whenever the stated bounds do):
 * **Prior.** The first sample with a Vicon value is a keyframe, and its pose gets a
   ±1 cm, ±0.01 rad box around it; when the window starts in a Vicon gap, the first pose
   gets a box 20 m around the posts. No sensor record is written: the laser misses posts.
+* **Time stamps.** Each record carries the time [s] of its sample (``t``): a move and a
+  prior that of the keyframe it reaches, an observation that of its reading, so that
+  ``cuikslam follow --rate`` replays the run at its recorded pace.
 """
 
 from __future__ import annotations
 
 import math
 import os
+from dataclasses import replace
 from typing import Literal
 
 import numpy as np
@@ -197,16 +201,18 @@ def read_lost_in_the_woods(
     if first_truth > start:
         # before the first Vicon pose the robot is only known to be near the posts
         lo, hi = posts.min(axis=0) - ARENA_MARGIN, posts.max(axis=0) + ARENA_MARGIN
-        records.append(PosePrior(0, (lo[0], hi[0]), (lo[1], hi[1]), (-4.0, 4.0)))
+        records.append(
+            PosePrior(0, (lo[0], hi[0]), (lo[1], hi[1]), (-4.0, 4.0), time=float(t[start]))
+        )
     assignment: list[str] = []
     truth_ids: list[int] = []
     truth_poses: list[list[float]] = []
     for i, k in enumerate(keys):
         if i > 0:
             a = keys[i - 1]
-            records.append(RelativePose(i - 1, i, *motion(a, k)))
+            records.append(RelativePose(i - 1, i, *motion(a, k), time=float(t[k])))
         if k == first_truth:
-            records.append(_prior(i, k, x, y, theta))
+            records.append(replace(_prior(i, k, x, y, theta), time=float(t[k])))
         if valid[k]:
             truth_ids.append(i)
             truth_poses.append([float(x[k]), float(y[k]), float(theta[k])])
@@ -226,6 +232,7 @@ def read_lost_in_the_woods(
                         (b - bearing_bound, b + bearing_bound),
                         None if unknown else f"P{p}",
                         offset=offset,
+                        time=float(t[j]),
                     )
                 )
                 assignment.append(f"P{p}")

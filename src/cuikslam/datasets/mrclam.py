@@ -36,6 +36,9 @@ Modelling choices:
   between Vicon samples more than ``truth_gap`` apart gets no truth (a Vicon gap). The
   landmark truth is ``Landmark_Groundtruth.dat``; a kept robot sighting's truth is that
   robot's Vicon position at the sighting's time (interpolated across any gap).
+* **Time stamps.** Each record carries its UNIX time [s]: a move and an observation that
+  of the pose they reach or are made from, the prior that of the first pose (``cuikslam
+  follow --rate`` replays the run at its recorded pace).
 * **Window.** From ``start`` seconds after the first command (no earlier than ``lag``
   after it, nor than the first Vicon sample) to the last measurement within ``duration``.
 
@@ -52,7 +55,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -233,6 +236,7 @@ def read_mrclam(
             _around(x, bounds.prior_xy),
             _around(y, bounds.prior_xy),
             _around(th, bounds.prior_theta),
+            time=float(times[0]),
         )
     ]
     if map_bound is not None:  # every landmark is surveyed: none beyond the map
@@ -258,9 +262,10 @@ def read_mrclam(
             report.commands += len(rows)
             v_box = ia.add(hulls[rows, 0:2], v_slack)
             w_box = ia.add(hulls[rows, 2:4], w_slack)
-            records.extend(motion(i - 1, i, v_box, w_box, step_times, bounds))
+            moves = motion(i - 1, i, v_box, w_box, step_times, bounds)
+            records.extend(replace(move, time=float(times[i])) for move in moves)
         for obs, true_id, xy in obs_by_pose.get(i, []):
-            records.append(obs)
+            records.append(replace(obs, time=float(times[i])))
             assignment.append(true_id)
             if xy is not None:
                 landmark_truth[true_id] = (*xy, "robot")

@@ -26,15 +26,19 @@ from cuikslam.graph.variables import (
 )
 from cuikslam.log.records import (
     Bounds,
+    ClassPrior,
     LandmarkPrior,
     Log,
     Observation,
     Odometry,
     PosePrior,
+    Record,
     RelativePose,
 )
 
 __all__ = ["ANY_ANGLE", "ANY_LENGTH", "KinematicGraph"]
+
+_NO_LANDMARK = "observation has no landmark id; solve it with unknown correspondence"
 
 
 @dataclass
@@ -56,6 +60,9 @@ class KinematicGraph:
     _sensor_var: dict[tuple[int, tuple[Bounds, ...]], int] = field(default_factory=dict)
     factor_lines: list[int] = field(default_factory=list)
     """Log line of each factor (0 when built by hand), for messages."""
+    regions: dict[str, tuple[Bounds, Bounds]] = field(default_factory=dict)
+    """Class -> the box every landmark of the class lies in (a ``class`` record's ``x``,
+    ``y``): applied to the class's landmarks, those declared before and after."""
 
     # ----------------------------------------------------------------- building
     def add_pose(self, pose: int) -> int:
@@ -71,7 +78,16 @@ class KinematicGraph:
             self._landmark_var[landmark] = self._vars.landmark()
             self.landmark_ids.append(landmark)
             self.landmark_classes.append(landmark_class)
+            if landmark_class in self.regions:
+                self._vars.meet_point(self._landmark_var[landmark], *self.regions[landmark_class])
         return self._landmark_var[landmark]
+
+    def add_region(self, landmark_class: str, x: Bounds, y: Bounds) -> None:
+        """Every landmark of ``landmark_class``, declared or to come, lies in ``x`` by ``y``."""
+        self.regions[landmark_class] = (x, y)
+        for landmark, cls in zip(self.landmark_ids, self.landmark_classes, strict=True):
+            if cls == landmark_class:
+                self._vars.meet_point(self._landmark_var[landmark], x, y)
 
     def add_pose_prior(self, pose: int, x: Bounds, y: Bounds, theta: Bounds) -> None:
         """A box known to contain the pose (headings meet modulo 2 pi)."""
@@ -145,50 +161,65 @@ class KinematicGraph:
         self.factor_lines.append(line)
         return len(self._factors) - 1
 
+    def add_record(self, record: Record, landmark: str | None = None) -> None:
+        """Add one log record: a prior, a move, an observation, or a ``class`` record's
+        region; the other records (``sensor``, ``outliers``, the rest of a ``class`` record)
+        add nothing to a graph of one correspondence.
+
+        ``landmark`` names the landmark an observation sees (by default its own id, which
+        must then be present).
+
+        Examples
+        --------
+        >>> from cuikslam.log.records import Observation, PosePrior
+        >>> graph = KinematicGraph()
+        >>> graph.add_record(PosePrior(0, (0, 0), (0, 0), (0, 0)))
+        >>> graph.add_record(Observation(0, "door", (2, 3), (0, 0), landmark="L0"))
+        >>> graph.pose_ids, graph.landmark_ids, graph.n_factors
+        ([0], ['L0'], 1)
+        """
+        if isinstance(record, PosePrior):
+            self.add_pose_prior(record.pose, record.x, record.y, record.theta)
+        elif isinstance(record, Odometry):
+            self.add_odometry(
+                record.source, record.target, record.turn, record.distance, record.line
+            )
+        elif isinstance(record, RelativePose):
+            self.add_relative_pose(
+                record.source, record.target, record.dx, record.dy, record.dtheta, record.line
+            )
+        elif isinstance(record, LandmarkPrior):
+            self.add_landmark_prior(record.landmark, record.x, record.y, record.landmark_class)
+        elif isinstance(record, ClassPrior):
+            if record.x is not None and record.y is not None:
+                self.add_region(record.landmark_class, record.x, record.y)
+        elif isinstance(record, Observation):
+            landmark = record.landmark if landmark is None else landmark
+            if landmark is None:
+                raise ValueError(f"line {record.line}: {_NO_LANDMARK}")
+            self.add_observation(
+                record.pose,
+                landmark,
+                record.range,
+                record.bearing,
+                record.landmark_class,
+                record.line,
+                record.offset,
+            )
+
     @classmethod
     def from_log(cls, log: Log, assignment: list[str] | None = None) -> KinematicGraph:
         """The graph of a log. ``assignment`` gives a landmark id per observation (log order);
         by default each observation's own ``landmark`` id, which must then be present."""
         graph = cls()
-        observation_index = 0
+        observations = iter(assignment) if assignment is not None else None
         for record in log.records:
-            if isinstance(record, PosePrior):
-                graph.add_pose_prior(record.pose, record.x, record.y, record.theta)
-            elif isinstance(record, Odometry):
-                graph.add_odometry(
-                    record.source, record.target, record.turn, record.distance, record.line
-                )
-            elif isinstance(record, RelativePose):
-                graph.add_relative_pose(
-                    record.source, record.target, record.dx, record.dy, record.dtheta, record.line
-                )
-            elif isinstance(record, LandmarkPrior):
-                graph.add_landmark_prior(record.landmark, record.x, record.y, record.landmark_class)
-            elif isinstance(record, Observation):
-                landmark = (
-                    assignment[observation_index] if assignment is not None else record.landmark
-                )
+            landmark = None
+            if isinstance(record, Observation):
+                landmark = record.landmark if observations is None else next(observations)
                 if landmark is None:
-                    raise ValueError(
-                        f"{log.path}:{record.line}: observation has no landmark id; "
-                        "solve it with unknown correspondence"
-                    )
-                graph.add_observation(
-                    record.pose,
-                    landmark,
-                    record.range,
-                    record.bearing,
-                    record.landmark_class,
-                    record.line,
-                    record.offset,
-                )
-                observation_index += 1
-        regions = {c: r for c, r in log.class_priors.items() if r.x is not None and r.y is not None}
-        for landmark, cls in zip(
-            list(graph.landmark_ids), list(graph.landmark_classes), strict=True
-        ):
-            if cls in regions:  # every landmark of the class lies in its region
-                graph.add_landmark_prior(landmark, regions[cls].x, regions[cls].y, cls)
+                    raise ValueError(f"{log.path}:{record.line}: {_NO_LANDMARK}")
+            graph.add_record(record, landmark)
         return graph
 
     # ----------------------------------------------------------------- arrays
@@ -200,15 +231,17 @@ class KinematicGraph:
     def n_factors(self) -> int:
         return len(self._factors)
 
-    def domains(self) -> tuple[np.ndarray, np.ndarray]:
-        """Fresh copies of the initial lower and upper bounds of every variable."""
-        return self._vars.arrays()
+    def domains(self, first: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Fresh copies of the initial lower and upper bounds of the variables from index
+        ``first`` on (every variable by default)."""
+        return self._vars.arrays(first)
 
-    def factor_table(self) -> np.ndarray:
-        """The factors as an int64 array of shape (n_factors, 9): kind, then 8 variable indices."""
-        if not self._factors:
+    def factor_table(self, first: int = 0) -> np.ndarray:
+        """The factors from index ``first`` on (every factor by default) as an int64 array
+        of shape (n, 9): kind, then 8 variable indices."""
+        if len(self._factors) <= first:
             return np.zeros((0, 1 + N_SLOTS), dtype=np.int64)
-        return np.array(self._factors, dtype=np.int64)
+        return np.array(self._factors[first:], dtype=np.int64)
 
     def adjacency(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Factors of each variable as linked lists ``(head, entry_factor, entry_next)``.
@@ -223,6 +256,10 @@ class KinematicGraph:
         for f in range(len(table)):
             n = link_factor(table[f], f, head, entry_factor, entry_next, n)
         return head, entry_factor[:n], entry_next[:n]
+
+    def has_pose(self, pose: int) -> bool:
+        """True when ``pose`` is a pose of the graph."""
+        return pose in self._pose_var
 
     def pose_index(self, pose: int) -> int:
         """Index of the x variable of ``pose`` (y and theta follow)."""

@@ -98,9 +98,12 @@ class Variables:
         lo, hi = periodic_meet(self.lo[var], self.hi[var], float(bounds[0]), float(bounds[1]))
         self.lo[var], self.hi[var] = lo, hi
 
-    def arrays(self) -> tuple[np.ndarray, np.ndarray]:
-        """Fresh float64 copies of the lower and upper bounds."""
-        return np.array(self.lo, dtype=np.float64), np.array(self.hi, dtype=np.float64)
+    def arrays(self, first: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Fresh float64 copies of the lower and upper bounds (from variable ``first`` on)."""
+        return (
+            np.array(self.lo[first:], dtype=np.float64),
+            np.array(self.hi[first:], dtype=np.float64),
+        )
 
     def pose(self) -> int:
         """A new pose (x, y, theta unconstrained); returns its x variable."""

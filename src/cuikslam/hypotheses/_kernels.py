@@ -254,7 +254,7 @@ def apply(
             n_switched += 1
     status, applications, n_applied = propagate_buffered(
         lo, hi, rows, head, entry_factor, entry_next, touched, rtol, max_rounds, 2**62,
-        queue, state, memory, applied,
+        queue, state, memory, applied, False,
     )  # fmt: skip
     changed = _changed(rows, applied, n_applied, narrowed, lo, hi, saved_lo, saved_hi, mark)
     out_idx = union(held_idx, changed)

@@ -7,6 +7,7 @@ file and line. Cross-record checks (which poses are reached, landmark classes) l
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import functools
 import json
@@ -286,8 +287,10 @@ def record_from_json(value: Any, line: int) -> Record:
                 f'{kind} record is missing field "{name}"; required fields: '
                 + ", ".join(schema.required)
             )
+    time = None
     if "time" in fields:
         if not _is_number(fields["time"]):
             raise Problem(f'field "time" must be a number, got {_show(fields["time"])}')
-        _finite(fields["time"], "time")
-    return schema.build(fields, line)
+        time = _finite(fields["time"], "time")
+    record = schema.build(fields, line)
+    return record if time is None else dataclasses.replace(record, time=time)

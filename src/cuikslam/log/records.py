@@ -3,7 +3,9 @@
 One dataclass per record type of the JSON Lines log format (``docs/log-format.md``).
 Every measured quantity is a closed interval ``(lo, hi)`` that contains the true value.
 Angles are in radians; headings counter-clockwise from +x, bearings counter-clockwise
-from the robot's heading.
+from the robot's heading. Every record may carry ``time``, the log's optional time stamp
+in seconds (None when absent): solving ignores it, ``cuikslam follow --rate`` replays the
+records at these times, and it takes no part in comparing records.
 """
 
 from __future__ import annotations
@@ -44,6 +46,7 @@ class PosePrior:
     y: Bounds
     theta: Bounds
     line: int = 0
+    time: float | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
@@ -59,6 +62,7 @@ class Odometry:
     turn: Bounds
     distance: Bounds
     line: int = 0
+    time: float | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
@@ -76,6 +80,7 @@ class RelativePose:
     dy: Bounds
     dtheta: Bounds
     line: int = 0
+    time: float | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
@@ -97,6 +102,7 @@ class Observation:
     landmark: str | None = None
     line: int = 0
     offset: tuple[Bounds, Bounds, Bounds] | None = None
+    time: float | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
@@ -108,6 +114,7 @@ class LandmarkPrior:
     x: Bounds
     y: Bounds
     line: int = 0
+    time: float | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
@@ -127,6 +134,7 @@ class ClassPrior:
     x: Bounds | None = None
     y: Bounds | None = None
     line: int = 0
+    time: float | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
@@ -144,6 +152,7 @@ class SensorModel:
     fov: float = 2 * math.pi
     nearest_margin: float | None = None
     line: int = 0
+    time: float | None = field(default=None, compare=False)
 
 
 @dataclass(frozen=True)
@@ -159,6 +168,7 @@ class OutlierBound:
     at_most: int
     window: int | None = None
     line: int = 0
+    time: float | None = field(default=None, compare=False)
 
 
 Record = (

@@ -145,4 +145,7 @@ def _record_to_json(record: Record) -> dict[str, Any]:
 
 
 def _record_to_line(record: Record) -> str:
-    return json.dumps(_record_to_json(record), allow_nan=False)
+    fields = _record_to_json(record)
+    if record.time is not None:
+        fields["time"] = float(record.time)
+    return json.dumps(fields, allow_nan=False)

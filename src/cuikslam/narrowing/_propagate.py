@@ -56,7 +56,7 @@ def propagate_arrays(
         lo, hi, factors, head, entry_factor, entry_next, touched, rtol, max_rounds,
         max_applications, np.empty(n_factors + 1, dtype=np.int64),
         np.zeros(n_factors, dtype=np.int8), fresh_memory(n_factors),
-        np.empty(n_factors, dtype=np.int64),
+        np.empty(n_factors, dtype=np.int64), False,
     )  # fmt: skip
     return status, applications
 
@@ -77,6 +77,7 @@ def propagate_buffered(
     state: np.ndarray,
     memory: np.ndarray,
     applied: np.ndarray,
+    keep_memory: bool,
 ) -> tuple[int, int, int]:
     """:func:`propagate_arrays` with caller-owned work arrays, for many small propagations.
 
@@ -85,7 +86,15 @@ def propagate_buffered(
     on return, whatever the status, so allocating them once serves every call: a call
     costs what it touches, not the size of the graph. Returns ``(status, applications,
     n_applied)``; ``applied[:n_applied]`` lists every factor applied, once each, so the
-    caller knows which variables may have changed.
+    caller knows which variables may have changed. When ``max_applications`` stopped the
+    iteration, the factors still queued are left at the front of ``queue``, in queue
+    order, ended by -1 (``queue[0]`` is -1 otherwise): a caller can resume from them.
+
+    ``keep_memory`` leaves each applied factor's memory (its auxiliary intervals) as the
+    call left it, for a caller whose bounds only ever shrink between calls (an online
+    graph): each memory then stays an enclosure of its true value, and a propagation cut
+    into several calls converges as one call does. Otherwise the memory is reset, as
+    every caller that moves the bounds between calls needs.
     """
     capacity = queue.shape[0]
     head_q = 0
@@ -134,11 +143,19 @@ def propagate_buffered(
                     queue[(head_q + size) % capacity] = g
                     size += 1
                     state[g] |= _QUEUED
+    left = np.empty(size if status == BUDGET_EXHAUSTED else 0, dtype=np.int64)
     for k in range(size):
-        state[queue[(head_q + k) % capacity]] = 0
+        f = queue[(head_q + k) % capacity]
+        state[f] = 0
+        if status == BUDGET_EXHAUSTED:
+            left[k] = f
+    queue[: len(left)] = left  # what the limit kept from running, to resume from
+    queue[len(left)] = -1
     for k in range(n_applied):
         f = applied[k]
         state[f] = 0
+        if keep_memory:
+            continue
         for j in range(MEMORY_WIDTH // 2):
             memory[f, 2 * j] = -INF
             memory[f, 2 * j + 1] = INF

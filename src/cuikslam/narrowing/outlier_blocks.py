@@ -140,7 +140,7 @@ class _Work:
         status, applications, n_applied = propagate_buffered(
             self.lo, self.hi, hard.factors, hard.head, hard.entry_factor, hard.entry_next,
             touched, float(rtol), int(max_rounds), 2**62, self.queue, self.state,
-            self.memory, self.applied,
+            self.memory, self.applied, False,
         )  # fmt: skip
         rows = hard.factors[self.applied[:n_applied], 1:].ravel()
         return status, applications, np.unique(rows[rows >= 0])

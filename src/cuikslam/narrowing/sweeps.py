@@ -192,7 +192,7 @@ class _Propagator:
         status, count, _ = propagate_buffered(
             lo, hi, a.factors, a.head, a.entry_factor, a.entry_next, touched, self.rtol,
             self.max_rounds, max_applications, self.queue, self.state, self.memory,
-            self.applied,
+            self.applied, False,
         )  # fmt: skip
         return Status(status), count
 

@@ -28,10 +28,16 @@ from cuikslam._json import dumps
 from cuikslam.errors import InputFileError
 from cuikslam.results.solution import Envelope, Hypothesis, Solution
 
-__all__ = ["read_result_file", "solution_to_json", "write_result_csv", "write_result_file"]
+__all__ = [
+    "bounds_to_json",
+    "read_result_file",
+    "solution_to_json",
+    "write_result_csv",
+    "write_result_file",
+]
 
 
-def _bounds(boxes: np.ndarray) -> list:
+def bounds_to_json(boxes: np.ndarray) -> list:
     """``boxes`` as nested lists of floats; JSON has no infinity: unbounded sides are null."""
     boxes = np.asarray(boxes, dtype=np.float64)
     unbounded = np.isinf(boxes)
@@ -47,12 +53,12 @@ def _hypothesis_to_json(h: Hypothesis, rank: int) -> dict[str, Any]:
         "assignment": list(h.assignment),
         "poses": {
             str(p): {"x": b[0], "y": b[1], "theta": b[2]}
-            for p, b in zip(h.pose_ids, _bounds(h.poses), strict=True)
+            for p, b in zip(h.pose_ids, bounds_to_json(h.poses), strict=True)
         },
         "landmarks": {
             m: {"class": c, "x": b[0], "y": b[1]}
             for m, c, b in zip(
-                h.landmark_ids, h.landmark_classes, _bounds(h.landmarks), strict=True
+                h.landmark_ids, h.landmark_classes, bounds_to_json(h.landmarks), strict=True
             )
         },
         "status": h.status,
@@ -94,9 +100,9 @@ def _envelope_json(envelope: Envelope) -> dict[str, Any]:
     return {
         "poses": {
             str(p): {"x": b[0], "y": b[1], "theta": b[2]}
-            for p, b in zip(envelope.pose_ids, _bounds(envelope.poses), strict=True)
+            for p, b in zip(envelope.pose_ids, bounds_to_json(envelope.poses), strict=True)
         },
-        "observations": [{"x": b[0], "y": b[1]} for b in _bounds(envelope.observations)],
+        "observations": [{"x": b[0], "y": b[1]} for b in bounds_to_json(envelope.observations)],
     }
 
 
@@ -125,7 +131,7 @@ def _correspondence_json(correspondence: dict[str, Any]) -> dict[str, Any]:
     hull = correspondence.get("pose_hull")
     if hull is None:
         return correspondence
-    return {**correspondence, "pose_hull": _bounds(np.asarray(hull, dtype=np.float64))}
+    return {**correspondence, "pose_hull": bounds_to_json(np.asarray(hull, dtype=np.float64))}
 
 
 def _read_correspondence(correspondence: Any) -> Any:

@@ -1,0 +1,253 @@
+"""Benchmark: following a log online (``cuikslam follow``), against its truth and the batch.
+
+Sections (each writes its part of ``benchmarks/results/online.json``):
+
+- ``known``: 2,000-pose known-correspondence logs from ``cuikslam simulate random --poses
+  2000 --seed S --landmarks L`` (the default 10 landmarks: long stretches with nothing in
+  view; 60: a landmark in view at nearly every pose), followed through the library path of
+  ``cuikslam follow`` (:func:`cuikslam.online.follow.follow` over the file's lines). It
+  checks one box per pose, in the order the log reaches the poses; every box against the
+  truth file (exactly, headings modulo 2π); the latency per pose (wall clock, from the
+  arrival of the record that finished the pose to its box) and the CPU time of the call
+  that gave it; and the last pose's box against the batch ``hull`` solve's. It then runs
+  the command itself on the same log and checks that it writes the same lines.
+- ``woods``: Lost in the Woods, the whole run with known correspondence (the importer's
+  defaults: keyframes of 10 samples, every reading, each record stamped with its time),
+  replayed at its recorded pace (``--rate 1``: about 21 minutes): whether the session ever
+  fell behind, and every Vicon pose against its box.
+- ``paper``: the seed's experiment with the landmark ids dropped, followed online: the
+  live hypotheses of its last line against the batch solve's survivors.
+
+Runs are warm (numba's cache is filled before the clock starts). The machine's load is
+recorded with every section: wall-clock figures are inflated on a busy machine, CPU
+figures much less.
+
+    python benchmarks/bench_online.py known [--poses 2000] [--seed 0] [--landmarks 10 60]
+    python benchmarks/bench_online.py woods [--rate 1]
+    python benchmarks/bench_online.py paper
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from cuikslam.online.estimate import PoseEstimate
+from cuikslam.online.follow import FollowReport, follow, log_lines
+from cuikslam.online.session import Session
+
+ROOT = Path(__file__).resolve().parents[1]
+RESULTS = ROOT / "benchmarks" / "results" / "online.json"
+CLI = [sys.executable, "-m", "cuikslam.cli.main"]
+
+
+def _load() -> list[float]:
+    return [round(v, 2) for v in os.getloadavg()]
+
+
+def _stats(values: list[float], scale: float = 1000.0) -> dict[str, float]:
+    """Median, 99th percentile and maximum, times ``scale`` (ms by default), rounded."""
+    a = np.asarray(values, dtype=float) * scale
+    return {
+        "p50": round(float(np.percentile(a, 50)), 3),
+        "p99": round(float(np.percentile(a, 99)), 3),
+        "max": round(float(a.max()), 3),
+    }
+
+
+@dataclass
+class Followed:
+    """What following one log gave, and what it cost."""
+
+    session: Session
+    report: FollowReport
+    estimates: list[PoseEstimate] = field(default_factory=list)
+    cpu_s: list[float] = field(default_factory=list)
+    """CPU seconds of each call that gave a box."""
+    applications: list[int] = field(default_factory=list)
+    """Operator applications of each such call."""
+    wall_s: float = 0.0
+    cpu_total_s: float = 0.0
+
+
+def follow_file(path: Path, rate: float | None = None) -> Followed:
+    """Follow the log at ``path`` as ``cuikslam follow`` does, measuring each pose."""
+    session = Session(path=str(path))
+    out = Followed(session, FollowReport())
+    add = session.add
+
+    def measured_add(record, received=None):
+        before, started = session.applications, time.thread_time()
+        estimate = add(record, received=received)
+        if estimate is not None:
+            out.cpu_s.append(time.thread_time() - started)
+            out.applications.append(session.applications - before)
+        return estimate
+
+    session.add = measured_add
+    wall, cpu = time.perf_counter(), time.process_time()
+    with open(path, encoding="utf-8") as stream:
+        lines = log_lines(stream, path=str(path))
+        out.report = follow(lines, session, out.estimates.append, rate=rate)
+    out.wall_s, out.cpu_total_s = time.perf_counter() - wall, time.process_time() - cpu
+    return out
+
+
+def _width_ratio(online: np.ndarray, batch: np.ndarray) -> list[float | None]:
+    """Online over batch width per coordinate (1 when equal, infinite ones included)."""
+    out = []
+    for (olo, ohi), (blo, bhi) in zip(online, batch, strict=True):
+        w_online, w_batch = ohi - olo, bhi - blo
+        out.append(1.0 if w_online == w_batch else round(float(w_online / w_batch), 6))
+    return out
+
+
+def _boxes(line: dict) -> dict:
+    """A JSON line without its latency (the one field that differs from run to run)."""
+    return {k: v for k, v in line.items() if k != "latency_s"}
+
+
+def run_known(poses: int, seed: int, landmarks: int, folder: Path) -> dict:
+    from cuikslam.log.reader import read_log_file
+    from cuikslam.online.estimate import check_estimates
+    from cuikslam.simulate.truth import read_truth_file
+    from cuikslam.solver import solve
+
+    log_path = folder / f"random-{poses}-{landmarks}.jsonl"
+    subprocess.run(
+        [*CLI, "simulate", "random", "--poses", str(poses), "--seed", str(seed),
+         "--landmarks", str(landmarks), "-o", str(log_path), "-q"],
+        check=True,
+    )  # fmt: skip
+    truth = read_truth_file(log_path.with_name(log_path.stem + ".truth.json"))
+    log = read_log_file(log_path)
+    load_before = _load()
+    run = follow_file(log_path)
+    load_after = _load()
+    estimates = run.estimates
+    verdict = check_estimates(estimates, truth)
+    batch = solve(log, consistency="hull", certify_limit=0).hypotheses[0]
+    last = estimates[-1]
+    out_path = folder / "follow.jsonl"
+    command = subprocess.run(
+        [*CLI, "follow", str(log_path), "-o", str(out_path), "-q"], check=False
+    )
+    written = [_boxes(json.loads(line)) for line in out_path.read_text().splitlines()]
+    same = written == [_boxes(e.to_json()) for e in estimates]
+    return {
+        "log": f"cuikslam simulate random --poses {poses} --seed {seed} --landmarks {landmarks}",
+        "records": len(log.records),
+        "observations": len(log.observations),
+        "poses": len(log.pose_ids),
+        "lines": len(estimates),
+        "lines_in_order": [e.pose for e in estimates] == list(log.pose_order()),
+        "truth_bounds_checked": verdict.checked,
+        "truth_misses": len(verdict.misses),
+        "latency_ms": _stats([e.latency_s for e in estimates]),
+        "cpu_per_pose_ms": _stats(run.cpu_s),
+        "applications_per_pose": _stats(run.applications, scale=1.0),
+        "work_per_pose": run.session.work_per_pose,
+        "total_s": round(run.wall_s, 2),
+        "total_cpu_s": round(run.cpu_total_s, 2),
+        "last_pose": last.pose,
+        "last_widths_online": [float(w) for w in np.diff(last.box).ravel()],
+        "last_widths_batch": [float(w) for w in np.diff(batch.pose(last.pose)).ravel()],
+        "last_width_ratio": _width_ratio(last.box, batch.pose(last.pose)),
+        "command_exit": command.returncode,
+        "command_lines_identical": same,
+        "load_before": load_before,
+        "load_after": load_after,
+    }
+
+
+def run_woods(rate: float, folder: Path) -> dict:
+    from cuikslam.datasets import data_dir, read_lost_in_the_woods
+    from cuikslam.log.writer import write_log_file
+    from cuikslam.online.estimate import check_estimates
+
+    source = (data_dir() or Path("missing")) / "lost-in-the-woods" / "dataset2.mat"
+    if not source.is_file():
+        sys.exit("dataset2.mat not found: set CUIKSLAM_DATA")
+    log, truth = read_lost_in_the_woods(source, unknown=False)
+    log_path = folder / "woods.jsonl"
+    write_log_file(log, log_path, validate=False)
+    stamps = [r.time for r in log.records if r.time is not None]
+    load_before = _load()
+    run = follow_file(log_path, rate)
+    load_after = _load()
+    report, estimates = run.report, run.estimates
+    verdict = check_estimates(estimates, truth)
+    return {
+        "log": "cuikslam import lost-in-the-woods dataset2.mat --known (keyframe 10, every "
+        "reading)",
+        "rate": rate,
+        "records": len(log.records),
+        "poses": len(log.pose_ids),
+        "recorded_s": round(stamps[-1] - stamps[0], 2),
+        "replay_s": round(run.wall_s, 2),
+        "cpu_s": round(run.cpu_total_s, 2),
+        "time_stamps": report.instants,
+        "behind": report.late,
+        "worst_late_ms": round(1000 * report.worst_late_s, 3),
+        "worst_late_line": report.worst_late_line,
+        "lines": len(estimates),
+        "vicon_poses_checked": verdict.checked // 3,
+        "truth_misses": len(verdict.misses),
+        "latency_ms": _stats([e.latency_s for e in estimates]),
+        "cpu_per_pose_ms": _stats(run.cpu_s),
+        "load_before": load_before,
+        "load_after": load_after,
+    }
+
+
+def _save(section: str, value: object) -> None:
+    results = json.loads(RESULTS.read_text()) if RESULTS.is_file() else {}
+    results[section] = value
+    RESULTS.write_text(json.dumps(results, indent=1) + "\n")
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("section", choices=["known", "woods", "paper"])
+    parser.add_argument("--poses", type=int, default=2000)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--landmarks", type=int, nargs="+", default=[10, 60])
+    parser.add_argument("--rate", type=float, default=1.0, help="woods: replay pace")
+    args = parser.parse_args(argv)
+    from cuikslam.online.session import warm_up as warm_up_online
+    from cuikslam.solver import warm_up
+
+    warm_up(unknown=args.section == "paper")
+    warm_up_online()
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        if args.section == "known":
+            rows = [run_known(args.poses, args.seed, n, folder) for n in args.landmarks]
+            for row in rows:
+                print(json.dumps(row))
+            _save("known", {"date": time.strftime("%Y-%m-%d"), "runs": rows})
+        elif args.section == "woods":
+            row = run_woods(args.rate, folder)
+            print(json.dumps(row))
+            _save("woods", {"date": time.strftime("%Y-%m-%d"), **row})
+        else:
+            row = run_paper()
+            print(json.dumps(row))
+            _save("paper", {"date": time.strftime("%Y-%m-%d"), **row})
+
+
+def run_paper() -> dict:
+    raise SystemExit("the paper section needs unknown correspondence online (not yet)")
+
+
+if __name__ == "__main__":
+    main()

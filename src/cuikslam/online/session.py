@@ -1,0 +1,300 @@
+"""An online session: records in as the robot drives, the newest pose's box out.
+
+A :class:`Session` takes the records of a log one at a time, in time order, checked by
+the same rules as a log file (:class:`~cuikslam.log.reader.OrderCheck`) and turned into
+factors by the same path (:meth:`~cuikslam.graph.KinematicGraph.add_record`). A pose is
+*finished* when a record reaches a later pose (an odometry or relative pose to a pose not
+reached yet, or a prior on one) or when the input ends (:meth:`Session.finish`); its box
+is then narrowed and returned (:class:`~.estimate.PoseEstimate`). The narrowing is
+incremental: the records since the last finished pose wake only their own factors, and
+the compiled propagation goes on from there only through the variables that shrink
+(:class:`~.growing.GrowingGraph`). Every box holds the truth whenever every record holds
+its own, as in a batch solve; only the order of the narrowing steps differs, so a box may
+differ from the batch ``hull`` box within the propagation's tolerance (``rtol``).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from cuikslam.budget import COSTS, ONLINE_WORK_PER_POSE
+from cuikslam.errors import InputFileError
+from cuikslam.graph.kinematic_graph import KinematicGraph
+from cuikslam.graph.variables import Variables
+from cuikslam.log.reader import OrderCheck
+from cuikslam.log.records import (
+    ClassPrior,
+    LandmarkPrior,
+    Observation,
+    Odometry,
+    OutlierBound,
+    PosePrior,
+    Record,
+    RelativePose,
+)
+from cuikslam.narrowing.propagation import DEFAULT_RTOL, Status
+from cuikslam.online.estimate import PoseEstimate
+from cuikslam.online.growing import GrowingGraph
+
+__all__ = ["SETTLE_STEP", "Session", "warm_up"]
+
+SETTLE_STEP = 5_000.0
+"""Work units of each step of :meth:`Session.settle`, which checks the clock between
+steps."""
+
+
+class Session:
+    """Guaranteed boxes as the robot drives: add records as they arrive, get each pose's box
+    when it is finished.
+
+    Parameters
+    ----------
+    rtol : float
+        A variable that shrinks by less than this fraction of its width wakes no other
+        factor (as in a batch solve).
+    work_per_pose : float, optional
+        Work units (:mod:`cuikslam.budget`) the narrowing may spend when a pose is
+        finished, before its box is given (default
+        :data:`~cuikslam.budget.ONLINE_WORK_PER_POSE`); what it could not
+        do waits for :meth:`settle` or the next pose (sound either way: a box given
+        earlier is only wider). None: to the fixpoint every time.
+    path : str
+        Where the records come from, for messages.
+
+    Examples
+    --------
+    >>> from cuikslam.log.records import Observation, Odometry, PosePrior
+    >>> session = Session()
+    >>> session.add(PosePrior(0, (0, 0), (0, 0), (0, 0)))
+    >>> session.add(Observation(0, "post", (2.0, 2.1), (-0.01, 0.01), landmark="P"))
+    >>> first = session.add(Odometry(0, 1, (0.0, 0.0), (1.0, 1.1)))  # pose 0 is finished
+    >>> first.pose, first.box.tolist()
+    (0, [[0.0, 0.0], [0.0, 0.0], [0.0, 0.0]])
+    >>> session.add(Observation(1, "post", (0.9, 1.0), (-0.01, 0.01), landmark="P"))
+    >>> last = session.finish()  # the end of the input finishes pose 1
+    >>> last.pose, last.box[0].round(3).tolist(), last.hypotheses
+    (1, [1.0, 1.1], 1)
+    """
+
+    def __init__(
+        self,
+        *,
+        rtol: float = DEFAULT_RTOL,
+        work_per_pose: float | None = ONLINE_WORK_PER_POSE,
+        path: str = "<session>",
+    ) -> None:
+        self.path = path
+        self.rtol = rtol
+        self.work_per_pose = work_per_pose
+        self._check = OrderCheck(path)
+        self._graph = KinematicGraph()
+        self._grown = GrowingGraph(rtol)
+        self._touched: list[np.ndarray] = []
+        self._deferred = np.zeros(0, dtype=np.int64)
+        self._pending_lines: list[int] = []
+        self.newest: int | None = None
+        """The pose the log reached last (not finished yet), or None."""
+        self.finished: list[int] = []
+        """The finished poses, in the order they were finished."""
+        self.refuted: str | None = None
+        """Once the records are proven inconsistent, the message saying so (then no box is
+        given any more: there is no solution)."""
+        self.records = 0
+        """Records added."""
+        self.applications = 0
+        """Narrowing operators applied, over the whole session."""
+
+    # ------------------------------------------------------------------ input
+    def add(self, record: Record, *, received: float | None = None) -> PoseEstimate | None:
+        """Add the next record of the log; returns the box of the pose it finishes, if any.
+
+        Parameters
+        ----------
+        record : Record
+            The next record, in time order.
+        received : float, optional
+            When the record arrived (:func:`time.perf_counter`), from which the latency of
+            the box is counted; by default, now.
+
+        Raises
+        ------
+        InputFileError
+            When the record breaks a rule of the log format given the records before it
+            (naming ``path`` and the record's line), or asks for what a session does not
+            do yet.
+        """
+        received = time.perf_counter() if received is None else received
+        if self.refuted is not None:
+            return None
+        self._check(record)
+        self.records += 1
+        finished = None
+        if self._reaches_new_pose(record):
+            finished = self._finish_newest(received)
+            self.newest = record.pose if isinstance(record, PosePrior) else record.target
+        self._add(record)
+        return finished
+
+    def finish(self, *, received: float | None = None) -> PoseEstimate | None:
+        """The end of the input: the box of the last pose (None when it is finished already,
+        or the log is proven inconsistent)."""
+        received = time.perf_counter() if received is None else received
+        estimate = self._finish_newest(received)
+        self.newest = None
+        return estimate
+
+    def settle(self, until: float | None = None) -> bool:
+        """Narrow what the records so far still owe (work a limit deferred, records not
+        narrowed yet) to the fixpoint, in steps of ``SETTLE_STEP`` work units; with
+        ``until`` (a :func:`time.perf_counter` value), stop after the step that passes it.
+        Returns True at the fixpoint."""
+        while self.refuted is None and (self._touched or len(self._deferred)):
+            if until is not None and time.perf_counter() >= until:
+                return False
+            self._narrow(SETTLE_STEP)
+        return True
+
+    # ------------------------------------------------------------------ output
+    @property
+    def has_poses(self) -> bool:
+        """True once a record reached a pose (which only a prior can do first)."""
+        return bool(self._check.reached)
+
+    @property
+    def hypotheses(self) -> int:
+        """Correspondence hypotheses alive: 1 with known correspondence (0 once refuted)."""
+        return 0 if self.refuted is not None else 1
+
+    def pose_box(self, pose: int) -> np.ndarray:
+        """The (3, 2) box of any pose reached so far, every record added so far narrowed in.
+
+        Raises
+        ------
+        KeyError
+            For a pose not reached yet.
+        ValueError
+            Once the records are proven inconsistent (:attr:`refuted`).
+        """
+        self.settle()
+        self._raise_if_refuted()
+        i = self._graph.pose_index(pose)
+        return np.stack([self._grown.lo[i : i + 3], self._grown.hi[i : i + 3]], axis=-1)
+
+    def landmark_box(self, landmark: str) -> np.ndarray:
+        """The (2, 2) box of a landmark named so far (see :meth:`pose_box`)."""
+        self.settle()
+        self._raise_if_refuted()
+        i = self._graph.landmark_index(landmark)
+        return np.stack([self._grown.lo[i : i + 2], self._grown.hi[i : i + 2]], axis=-1)
+
+    # ------------------------------------------------------------------ inside
+    def _raise_if_refuted(self) -> None:
+        if self.refuted is not None:
+            raise ValueError(self.refuted)
+
+    def _reaches_new_pose(self, record: Record) -> bool:
+        """True when ``record`` is the first to reach its pose."""
+        match record:
+            case PosePrior(pose=pose) | Odometry(target=pose) | RelativePose(target=pose):
+                return not self._graph.has_pose(pose)
+        return False
+
+    def _finish_newest(self, received: float) -> PoseEstimate | None:
+        if self.newest is None or self.refuted is not None:
+            return None
+        self._narrow(self.work_per_pose)
+        if self.refuted is not None:
+            return None
+        pose = self.newest
+        self.finished.append(pose)
+        i = self._graph.pose_index(pose)
+        box = np.stack([self._grown.lo[i : i + 3], self._grown.hi[i : i + 3]], axis=-1)
+        return PoseEstimate(pose, box, time.perf_counter() - received, self.hypotheses)
+
+    def _add(self, record: Record) -> None:
+        if isinstance(record, Observation) and record.landmark is None:
+            raise InputFileError(
+                self.path,
+                record.line,
+                "an observation without a landmark id: unknown correspondence is not "
+                "followed online yet",
+            )
+        if isinstance(record, OutlierBound):
+            raise InputFileError(
+                self.path, record.line, "outliers records are not followed online yet"
+            )
+        graph, grown = self._graph, self._grown
+        graph.add_record(record)
+        self._pending_lines.append(record.line)
+        if graph.n_variables > grown.n_variables:
+            grown.add_variables(*graph.domains(grown.n_variables))
+        if graph.n_factors > grown.n_factors:
+            self._touched.append(grown.add_factors(graph.factor_table(grown.n_factors)))
+        match record:
+            case PosePrior(pose=pose, x=x, y=y, theta=theta):
+                self._meet(graph.pose_index(pose), 3, lambda v: v.meet_pose(0, x, y, theta))
+            case LandmarkPrior(landmark=landmark, x=x, y=y):
+                self._meet(graph.landmark_index(landmark), 2, lambda v: v.meet_point(0, x, y))
+            case ClassPrior(landmark_class=cls, x=x, y=y) if x is not None and y is not None:
+                for landmark, kind in zip(graph.landmark_ids, graph.landmark_classes, strict=True):
+                    if kind == cls:
+                        self._meet(
+                            graph.landmark_index(landmark), 2, lambda v: v.meet_point(0, x, y)
+                        )
+
+    def _meet(self, first: int, n: int, meet) -> None:
+        """Intersect the bounds of variables ``first .. first + n - 1`` as ``meet`` does on
+        a :class:`~cuikslam.graph.variables.Variables` of them (headings modulo 2π), and
+        wake the factors of those that shrink."""
+        grown = self._grown
+        old_lo, old_hi = grown.lo[first : first + n].copy(), grown.hi[first : first + n].copy()
+        view = Variables(old_lo.tolist(), old_hi.tolist())
+        meet(view)
+        new_lo, new_hi = np.array(view.lo), np.array(view.hi)
+        if not np.all(new_lo <= new_hi):
+            self._refute()
+            return
+        grown.lo[first : first + n], grown.hi[first : first + n] = new_lo, new_hi
+        changed = first + np.flatnonzero((new_lo != old_lo) | (new_hi != old_hi))
+        if len(changed):
+            self._touched.append(grown.factors_of(changed))
+
+    def _narrow(self, work: float | None = None) -> None:
+        """Narrow from every factor the records since the last call touched, within
+        ``work`` units (None: no limit)."""
+        if self.refuted is not None:
+            return
+        if not (self._touched or len(self._deferred)):
+            self._pending_lines = []
+            return
+        touched = np.concatenate([self._deferred, *self._touched])
+        self._touched = []
+        limit = 2**62 if work is None else max(1, int(work / COSTS["operator"]))
+        result = self._grown.narrow(touched, limit)
+        self.applications += result.applications
+        self._deferred = result.deferred
+        if result.status is Status.INCONSISTENT:
+            self._refute()
+        else:
+            self._pending_lines = []
+
+    def _refute(self) -> None:
+        lines = [n for n in self._pending_lines if n > 0]
+        where = f" (proven when the records of lines {min(lines)}-{max(lines)} came in)"
+        self.refuted = (
+            f"{self.path}: the log is inconsistent: its constraints contract to empty (a proof)"
+            + (where if lines else "")
+        )
+
+
+def warm_up() -> None:
+    """Load the compiled kernels a session calls (from numba's cache, or compile them), so
+    that the latency of the first pose does not include it: a session of two poses."""
+    session = Session()
+    session.add(PosePrior(0, (0.0, 0.0), (0.0, 0.0), (0.0, 0.0)))
+    session.add(Observation(0, "c", (1.0, 1.1), (0.0, 0.1), landmark="A"))
+    session.add(Odometry(0, 1, (0.0, 0.1), (1.0, 1.1)))
+    session.add(PosePrior(1, (-5.0, 5.0), (-5.0, 5.0), (-1.0, 1.0)))
+    session.finish()
