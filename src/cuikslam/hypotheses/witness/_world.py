@@ -47,9 +47,15 @@ forward kinematics carries their residue into every later frame)."""
 DENSE_COLUMNS = 120
 """Up to this many free parameters the Jacobian is returned dense (Cholesky of dense
 normal equations costs less than building and factorising sparse matrices)."""
-VERIFY_OPERATIONS_PER_FRAME = 20
+VERIFY_OPERATIONS_PER_FRAME = 40
 """Interval operations counted for one frame's step in the verification's forward
-kinematics (about ten operations, each on a few interval arrays)."""
+kinematics (about ten operations on single intervals, each called from Python: 20 us a
+frame measured on the whole Lost in the Woods run)."""
+UNITS_PER_RECORD = 5.0
+"""Work units of building a hypothesis' model and world form, per observation and frame;
+and of a start's parameters (the model's kinematics, step by step), per frame: Python
+loops over the log (0.6 s for the 61,086 readings and 13,795 frames of the whole Lost in
+the Woods run)."""
 
 
 class _Rows:
@@ -213,6 +219,10 @@ class WorldForm:
         )
         """Work units of :meth:`to_params` and :meth:`holds`: the model's forward kinematics,
         checks and sensor pairs in floating point."""
+        self.build_cost = UNITS_PER_RECORD * (len(m.obs_pose) + m.n_frames)
+        """Work units of building the model and this form."""
+        self.start_cost = COSTS["start"] + UNITS_PER_RECORD * m.n_frames
+        """Work units of a start's parameters and world (beside its landmarks' fits)."""
         self.verify_cost = COSTS["verification"] + COSTS["interval_entry"] * (
             VERIFY_OPERATIONS_PER_FRAME * m.n_frames + m.n_checks + pairs
         )

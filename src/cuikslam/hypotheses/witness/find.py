@@ -250,6 +250,7 @@ class WitnessSearch:
         self.stats = statistics
         model.focus_sensor(poses_box, landmarks_box)
         self.world = WorldForm(model)
+        spend(deadline, self.world.build_cost)
         self.meter = _Meter(deadline, max_evaluations, statistics, self.world.evaluation_cost)
         self.tried = 0
         self.best: tuple[float, np.ndarray] | None = None
@@ -296,7 +297,7 @@ class WitnessSearch:
                 self.tried += 1
                 meter.quota_end = None if quota is None else meter.used + quota
                 try:
-                    spend(self.deadline, COSTS["start"])
+                    spend(self.deadline, self.world.start_cost)
                     meter.tick()  # a start counts as an evaluation, even one that fails
                     x0, centre, poses = self._start(self.tried - 1)
                     p, residual, box = _solve_margins(model, self.world, x0, meter, centre, poses)
