@@ -167,7 +167,7 @@ def run_follow(args: argparse.Namespace) -> int:
         truth = read_truth_file(args.truth)
     name = "<stdin>" if args.log == "-" else args.log
     source = sys.stdin if args.log == "-" else _open_log(args.log)
-    warm_up()
+    warm_up(unknown=True)
     status = _Status(not args.quiet)
     sink = _LazyFile(args.output)
     to_terminal = args.output is None and sys.stdout.isatty()

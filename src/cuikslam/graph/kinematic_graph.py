@@ -257,10 +257,6 @@ class KinematicGraph:
             n = link_factor(table[f], f, head, entry_factor, entry_next, n)
         return head, entry_factor[:n], entry_next[:n]
 
-    def has_pose(self, pose: int) -> bool:
-        """True when ``pose`` is a pose of the graph."""
-        return pose in self._pose_var
-
     def pose_index(self, pose: int) -> int:
         """Index of the x variable of ``pose`` (y and theta follow)."""
         return self._pose_var[pose]

@@ -20,23 +20,25 @@ import time
 import numpy as np
 
 from cuikslam.budget import COSTS, ONLINE_WORK_PER_POSE
-from cuikslam.errors import InputFileError
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.graph.variables import Variables
 from cuikslam.log.reader import OrderCheck
 from cuikslam.log.records import (
     ClassPrior,
     LandmarkPrior,
+    Log,
     Observation,
     Odometry,
     OutlierBound,
     PosePrior,
     Record,
     RelativePose,
+    SensorModel,
 )
 from cuikslam.narrowing.propagation import DEFAULT_RTOL, Status
 from cuikslam.online.estimate import PoseEstimate
 from cuikslam.online.growing import GrowingGraph
+from cuikslam.online.hypotheses import LiveHypotheses
 
 __all__ = ["SETTLE_STEP", "Session", "warm_up"]
 
@@ -89,6 +91,12 @@ class Session:
         self.rtol = rtol
         self.work_per_pose = work_per_pose
         self._check = OrderCheck(path)
+        self._records: list[Record] = []
+        self._live: LiveHypotheses | None = None
+        """With unknown correspondence (or an outliers record), the live hypotheses."""
+        self._search_again = False
+        self._sensor = False
+        self._finished_set: set[int] = set()
         self._graph = KinematicGraph()
         self._grown = GrowingGraph(rtol)
         self._touched: list[np.ndarray] = []
@@ -128,12 +136,14 @@ class Session:
         received = time.perf_counter() if received is None else received
         if self.refuted is not None:
             return None
+        new_pose = self._reaches_new_pose(record)
         self._check(record)
         self.records += 1
         finished = None
-        if self._reaches_new_pose(record):
+        if new_pose:
             finished = self._finish_newest(received)
             self.newest = record.pose if isinstance(record, PosePrior) else record.target
+        self._records.append(record)  # after: a finished pose's update stops before it
         self._add(record)
         return finished
 
@@ -150,7 +160,9 @@ class Session:
         narrowed yet) to the fixpoint, in steps of ``SETTLE_STEP`` work units; with
         ``until`` (a :func:`time.perf_counter` value), stop after the step that passes it.
         Returns True at the fixpoint."""
-        while self.refuted is None and (self._touched or len(self._deferred)):
+        while (
+            self._live is None and self.refuted is None and (self._touched or len(self._deferred))
+        ):
             if until is not None and time.perf_counter() >= until:
                 return False
             self._narrow(SETTLE_STEP)
@@ -165,7 +177,19 @@ class Session:
     @property
     def hypotheses(self) -> int:
         """Correspondence hypotheses alive: 1 with known correspondence (0 once refuted)."""
-        return 0 if self.refuted is not None else 1
+        if self.refuted is not None:
+            return 0
+        return 1 if self._live is None else len(self._live)
+
+    def assignments(self) -> list[list[str]]:
+        """The landmark of each observation so far (log order) in each live hypothesis
+        (with unknown correspondence, as of the last finished pose; see
+        :meth:`.hypotheses.LiveHypotheses.assignments`)."""
+        if self.refuted is not None:
+            return []
+        if self._live is None:
+            return [[r.landmark for r in self._records if isinstance(r, Observation)]]
+        return self._live.assignments()
 
     def pose_box(self, pose: int) -> np.ndarray:
         """The (3, 2) box of any pose reached so far, every record added so far narrowed in.
@@ -179,6 +203,8 @@ class Session:
         """
         self.settle()
         self._raise_if_refuted()
+        if self._live is not None:
+            return self._live.pose_box(pose)
         i = self._graph.pose_index(pose)
         return np.stack([self._grown.lo[i : i + 3], self._grown.hi[i : i + 3]], axis=-1)
 
@@ -186,6 +212,11 @@ class Session:
         """The (2, 2) box of a landmark named so far (see :meth:`pose_box`)."""
         self.settle()
         self._raise_if_refuted()
+        if self._live is not None:
+            raise ValueError(
+                "with unknown correspondence a landmark is not the same in every hypothesis: "
+                "see assignments()"
+            )
         i = self._graph.landmark_index(landmark)
         return np.stack([self._grown.lo[i : i + 2], self._grown.hi[i : i + 2]], axis=-1)
 
@@ -195,36 +226,47 @@ class Session:
             raise ValueError(self.refuted)
 
     def _reaches_new_pose(self, record: Record) -> bool:
-        """True when ``record`` is the first to reach its pose."""
+        """True when ``record`` will be the first to reach its pose."""
         match record:
             case PosePrior(pose=pose) | Odometry(target=pose) | RelativePose(target=pose):
-                return not self._graph.has_pose(pose)
+                return pose not in self._check.reached
         return False
 
     def _finish_newest(self, received: float) -> PoseEstimate | None:
         if self.newest is None or self.refuted is not None:
             return None
-        self._narrow(self.work_per_pose)
-        if self.refuted is not None:
-            return None
         pose = self.newest
+        if self._live is not None:
+            self._live.update(Log(self._records, self.path), complete=self._search_again)
+            self._search_again = False
+            if self._live.refuted:
+                self.refuted = (
+                    f"{self.path}: every correspondence hypothesis is proven impossible "
+                    f"(a proof), when pose {pose} was finished"
+                )
+                return None
+            box = self._live.pose_box(pose)
+        else:
+            self._narrow(self.work_per_pose)
+            if self.refuted is not None:
+                return None
+            i = self._graph.pose_index(pose)
+            box = np.stack([self._grown.lo[i : i + 3], self._grown.hi[i : i + 3]], axis=-1)
         self.finished.append(pose)
-        i = self._graph.pose_index(pose)
-        box = np.stack([self._grown.lo[i : i + 3], self._grown.hi[i : i + 3]], axis=-1)
+        self._finished_set.add(pose)
         return PoseEstimate(pose, box, time.perf_counter() - received, self.hypotheses)
 
     def _add(self, record: Record) -> None:
-        if isinstance(record, Observation) and record.landmark is None:
-            raise InputFileError(
-                self.path,
-                record.line,
-                "an observation without a landmark id: unknown correspondence is not "
-                "followed online yet",
-            )
-        if isinstance(record, OutlierBound):
-            raise InputFileError(
-                self.path, record.line, "outliers records are not followed online yet"
-            )
+        self._sensor = self._sensor or isinstance(record, SensorModel)
+        if self._live is None and (
+            isinstance(record, OutlierBound)
+            or (isinstance(record, Observation) and record.landmark is None)
+        ):
+            self._live = LiveHypotheses(self.rtol)
+        if self._live is not None:  # the records are kept, the search takes them at a pose
+            if isinstance(record, Observation) and record.pose in self._finished_set:
+                self._search_again = self._search_again or self._sensor
+            return
         graph, grown = self._graph, self._grown
         graph.add_record(record)
         self._pending_lines.append(record.line)
@@ -289,12 +331,16 @@ class Session:
         )
 
 
-def warm_up() -> None:
+def warm_up(unknown: bool = False) -> None:
     """Load the compiled kernels a session calls (from numba's cache, or compile them), so
-    that the latency of the first pose does not include it: a session of two poses."""
-    session = Session()
-    session.add(PosePrior(0, (0.0, 0.0), (0.0, 0.0), (0.0, 0.0)))
-    session.add(Observation(0, "c", (1.0, 1.1), (0.0, 0.1), landmark="A"))
-    session.add(Odometry(0, 1, (0.0, 0.1), (1.0, 1.1)))
-    session.add(PosePrior(1, (-5.0, 5.0), (-5.0, 5.0), (-1.0, 1.0)))
-    session.finish()
+    that the latency of the first pose does not include it: a session of two poses, and
+    with ``unknown`` one of two poses whose correspondence is unknown."""
+    for named in (True, False) if unknown else (True,):
+        session = Session()
+        session.add(SensorModel(max_range=5.0, fov=3.0))
+        session.add(PosePrior(0, (0.0, 0.0), (0.0, 0.0), (0.0, 0.0)))
+        session.add(Observation(0, "c", (1.0, 1.1), (0.0, 0.1), "A" if named else None))
+        session.add(Odometry(0, 1, (0.0, 0.1), (1.0, 1.1)))
+        session.add(PosePrior(1, (-5.0, 5.0), (-5.0, 5.0), (-1.0, 1.0)))
+        session.add(Observation(1, "c", (0.0, 0.2), (0.0, 0.1), "A" if named else None))
+        session.finish()
