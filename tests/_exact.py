@@ -19,11 +19,15 @@ def mpf(x: float) -> mpmath.mpf:
     return MP.mpf(float(x))
 
 
-def angle_inside(lo: float, hi: float, v: mpmath.mpf) -> bool:
-    """Whether ``v + 2πk`` lies in [lo, hi] for some integer k."""
+def angle_inside(lo: float, hi: float, v: mpmath.mpf, context: mpmath.MPContext = MP) -> bool:
+    """Whether ``v + 2πk`` lies in [lo, hi] for some integer k, 2π taken in ``context``:
+    pass the context ``v`` was computed in when it is more precise than this module's (a
+    bearing computed at 4,400 bits may lie closer to a bound than 1,300 bits of 2π can
+    tell)."""
     if not lo <= hi:
         return False
     if hi - lo >= 7.0:
         return True
-    k = MP.ceil((mpf(lo) - v) / TWO_PI)
-    return v + k * TWO_PI <= mpf(hi)
+    two_pi = 2 * context.pi
+    k = context.ceil((context.mpf(float(lo)) - v) / two_pi)
+    return v + k * two_pi <= context.mpf(float(hi))

@@ -703,7 +703,7 @@ def violations(log: Log, world: OddWorld) -> list[str]:
         return mpf(bounds[0]) <= v <= mpf(bounds[1])
 
     def angle(bounds: tuple[float, float], v: Any) -> bool:
-        return angle_inside(float(bounds[0]), float(bounds[1]), v)
+        return angle_inside(float(bounds[0]), float(bounds[1]), v, MP)
 
     bad: list[str] = []
     k = 0
