@@ -64,6 +64,14 @@ def add_follow_parser(sub: argparse._SubParsersAction) -> None:
         "as fast (1: the recorded pace), and report whether the boxes ever fell behind",
     )
     p.add_argument(
+        "--consistency",
+        choices=["hull", "lp"],
+        default="hull",
+        help="'hull' (default): the fixpoint of the narrowing operators; 'lp': also, once a "
+        "pose's line is written, the polytope-hull operator on the window of the last "
+        "poses, when time allows (known correspondence)",
+    )
+    p.add_argument(
         "--work-per-pose",
         type=_work,
         default=ONLINE_WORK_PER_POSE,
@@ -167,7 +175,7 @@ def run_follow(args: argparse.Namespace) -> int:
         truth = read_truth_file(args.truth)
     name = "<stdin>" if args.log == "-" else args.log
     source = sys.stdin if args.log == "-" else _open_log(args.log)
-    warm_up(unknown=True)
+    warm_up(unknown=True, lp=args.consistency == "lp")
     status = _Status(not args.quiet)
     sink = _LazyFile(args.output)
     to_terminal = args.output is None and sys.stdout.isatty()
@@ -182,7 +190,7 @@ def run_follow(args: argparse.Namespace) -> int:
         status.show(_status_text(estimate))
 
     started = time.perf_counter()
-    session = Session(path=name, work_per_pose=args.work_per_pose)
+    session = Session(consistency=args.consistency, path=name, work_per_pose=args.work_per_pose)
     try:
         lines = log_lines(source, path=name, wait=args.wait)
         report = follow(lines, session, on_pose, rate=args.rate)

@@ -159,8 +159,9 @@ def follow(
 ) -> FollowReport:
     """Feed numbered log lines to ``session``; ``on_pose`` gets each finished pose's box.
 
-    The narrowing a pose's work limit left (:meth:`Session.settle`) is done right after
-    its box is given, or, with a ``rate``, while waiting for the next record. The records
+    The narrowing a pose's work limit left (:meth:`Session.settle`: and the ``lp`` level's
+    window, at that level) is done right after its box is given, or, with a ``rate``,
+    while waiting for the next record. The records
     a session keeps live as long as it does: while following, the objects of the process
     are moved out of the garbage collector's reach (:func:`gc.freeze`) at each pose given,
     so that its full collections, whose cost grows with the log (200 ms on half of Lost in
