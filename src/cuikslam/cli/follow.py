@@ -16,6 +16,8 @@ from cuikslam.cli._common import (
     EXIT_RESULT,
     CommandError,
     check_output_path,
+    limit_or_none,
+    positive_float,
 )
 from cuikslam.errors import InputFileError
 
@@ -48,7 +50,7 @@ def add_follow_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--wait",
         nargs="?",
-        type=_positive,
+        type=positive_float,
         const=math.inf,
         default=None,
         metavar="SECONDS",
@@ -57,7 +59,7 @@ def add_follow_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--rate",
-        type=_positive,
+        type=positive_float,
         default=None,
         metavar="FACTOR",
         help='feed the records at their recorded times (their "time" field), FACTOR times '
@@ -91,17 +93,7 @@ def add_follow_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _work(text: str) -> float | None:
-    return None if text.strip().lower() == "none" else _positive(text)
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not value > 0 or math.isnan(value):
-        raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
-    return value
+    return limit_or_none(text, "work units")
 
 
 class _Status:
