@@ -8,6 +8,7 @@ Kept apart from :mod:`cuikslam.cli.main` so that ``python -m cuikslam.cli.main``
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 import time
@@ -25,6 +26,9 @@ __all__ = [
     "CommandError",
     "check_figure_path",
     "check_output_path",
+    "int_at_least",
+    "limit_or_none",
+    "positive_float",
     "progress_bar",
     "write_output",
 ]
@@ -131,3 +135,28 @@ def int_at_least(minimum: int) -> Callable[[str], int]:
         return value
 
     return parse
+
+
+def positive_float(text: str) -> float:
+    """An argparse type: a positive finite number."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (value > 0 and math.isfinite(value)):
+        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text}")
+    return value
+
+
+def limit_or_none(text: str, unit: str) -> float | None:
+    """An argparse type's body: a positive number of ``unit``, or None (no limit) for
+    ``none``, ``inf`` or ``infinity``."""
+    if text.strip().lower() in ("none", "inf", "infinity"):
+        return None
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number of {unit}: {text!r}") from None
+    if not value > 0 or math.isnan(value):
+        raise argparse.ArgumentTypeError(f"must be a positive number of {unit}, got {text}")
+    return None if math.isinf(value) else value

@@ -16,6 +16,8 @@ from cuikslam.cli._common import (
     EXIT_RESULT,
     CommandError,
     check_output_path,
+    limit_or_none,
+    positive_float,
 )
 from cuikslam.errors import InputFileError
 
@@ -48,7 +50,7 @@ def add_follow_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--wait",
         nargs="?",
-        type=_positive,
+        type=positive_float,
         const=math.inf,
         default=None,
         metavar="SECONDS",
@@ -57,11 +59,19 @@ def add_follow_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument(
         "--rate",
-        type=_positive,
+        type=positive_float,
         default=None,
         metavar="FACTOR",
         help='feed the records at their recorded times (their "time" field), FACTOR times '
         "as fast (1: the recorded pace), and report whether the boxes ever fell behind",
+    )
+    p.add_argument(
+        "--consistency",
+        choices=["hull", "lp"],
+        default="hull",
+        help="'hull' (default): the fixpoint of the narrowing operators; 'lp': also, once a "
+        "pose's line is written, the polytope-hull operator on the window of the last "
+        "poses, when time allows (known correspondence)",
     )
     p.add_argument(
         "--work-per-pose",
@@ -83,17 +93,7 @@ def add_follow_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _work(text: str) -> float | None:
-    return None if text.strip().lower() == "none" else _positive(text)
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not value > 0 or math.isnan(value):
-        raise argparse.ArgumentTypeError(f"must be a positive number, got {text}")
-    return value
+    return limit_or_none(text, "work units")
 
 
 class _Status:
@@ -167,7 +167,7 @@ def run_follow(args: argparse.Namespace) -> int:
         truth = read_truth_file(args.truth)
     name = "<stdin>" if args.log == "-" else args.log
     source = sys.stdin if args.log == "-" else _open_log(args.log)
-    warm_up(unknown=True)
+    warm_up(unknown=True, lp=args.consistency == "lp")
     status = _Status(not args.quiet)
     sink = _LazyFile(args.output)
     to_terminal = args.output is None and sys.stdout.isatty()
@@ -182,7 +182,7 @@ def run_follow(args: argparse.Namespace) -> int:
         status.show(_status_text(estimate))
 
     started = time.perf_counter()
-    session = Session(path=name, work_per_pose=args.work_per_pose)
+    session = Session(consistency=args.consistency, path=name, work_per_pose=args.work_per_pose)
     try:
         lines = log_lines(source, path=name, wait=args.wait)
         report = follow(lines, session, on_pose, rate=args.rate)

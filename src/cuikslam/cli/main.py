@@ -8,7 +8,6 @@ inconsistent, or ``--truth`` found a box that misses the truth); 2 for bad input
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import sys
 from collections.abc import Sequence
@@ -16,7 +15,13 @@ from typing import TYPE_CHECKING
 
 from cuikslam import __version__
 from cuikslam.budget import DEFAULT_WORK_BUDGET, WORK_PER_POSE
-from cuikslam.cli._common import EXIT_INPUT, EXIT_INTERRUPTED, CommandError, int_at_least
+from cuikslam.cli._common import (
+    EXIT_INPUT,
+    EXIT_INTERRUPTED,
+    CommandError,
+    int_at_least,
+    limit_or_none,
+)
 from cuikslam.cli.commands import (
     cmd_evaluate,
     cmd_paper,
@@ -104,38 +109,16 @@ def _work_budget(text: str) -> float | str | None:
     ``auto``."""
     if text.strip().lower() == "auto":
         return "auto"
-    return _limit(text, "work units")
+    return limit_or_none(text, "work units")
 
 
 def _time_budget(text: str) -> float | None:
     """An argparse type: seconds (a positive number), ``none`` / ``inf`` for no cap."""
-    return _limit(text, "seconds")
-
-
-def _limit(text: str, unit: str) -> float | None:
-    if text.strip().lower() in ("none", "inf", "infinity"):
-        return None
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number of {unit}: {text!r}") from None
-    if not value > 0 or math.isnan(value):
-        raise argparse.ArgumentTypeError(f"must be a positive number of {unit}, got {text}")
-    return None if math.isinf(value) else value
+    return limit_or_none(text, "seconds")
 
 
 _positive_int = int_at_least(1)
 _non_negative_int = int_at_least(0)
-
-
-def _positive_float(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (value > 0 and math.isfinite(value)):
-        raise argparse.ArgumentTypeError(f"must be a positive finite number, got {text}")
-    return value
 
 
 def build_parser() -> argparse.ArgumentParser:

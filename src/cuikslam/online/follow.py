@@ -12,6 +12,7 @@ fell due before those of the previous instant were done.
 
 from __future__ import annotations
 
+import gc
 import math
 import time
 from collections.abc import Callable, Iterator
@@ -158,8 +159,13 @@ def follow(
 ) -> FollowReport:
     """Feed numbered log lines to ``session``; ``on_pose`` gets each finished pose's box.
 
-    The narrowing a pose's work limit left (:meth:`Session.settle`) is done right after
-    its box is given, or, with a ``rate``, while waiting for the next record. The input
+    The narrowing a pose's work limit left (:meth:`Session.settle`: and the ``lp`` level's
+    window, at that level) is done right after its box is given, or, with a ``rate``,
+    while waiting for the next record. The records
+    a session keeps live as long as it does: while following, the objects of the process
+    are moved out of the garbage collector's reach (:func:`gc.freeze`) at each pose given,
+    so that its full collections, whose cost grows with the log (200 ms on half of Lost in
+    the Woods), do not stall a pose; they are given back to it at the end. The input
     ends with ``lines``, or with Ctrl-C (then the last pose is finished all the
     same, and ``interrupted`` is set), or once the records are proven inconsistent.
 
@@ -184,6 +190,7 @@ def follow(
     report = FollowReport()
     pacer = Pacer(rate) if rate is not None else None
     last_stamp: float | None = None
+    gc.freeze()  # what exists now, and each pose's records once given: see the docstring
 
     def give(estimate: PoseEstimate | None) -> None:
         if estimate is not None:
@@ -215,13 +222,17 @@ def follow(
                 received = due
             estimate = session.add(record, received=received)
             give(estimate)
-            if estimate is not None and pacer is None:
-                session.settle()  # the box is out: now the rest of the narrowing
+            if estimate is not None:
+                gc.freeze()
+                if pacer is None:
+                    session.settle()  # the box is out: now the rest of the narrowing
             if session.refuted is not None:
                 report.refuted = session.refuted
                 return report
     except KeyboardInterrupt:
         report.interrupted = True
+    finally:
+        gc.unfreeze()
     check_complete(session.records, session.has_poses, session.path)
     give(session.finish())
     report.refuted = session.refuted

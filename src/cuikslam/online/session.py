@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 
-from cuikslam.budget import COSTS, ONLINE_WORK_PER_POSE
+from cuikslam.budget import COSTS, ONLINE_WORK_PER_POSE, Budget
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.graph.variables import Variables
 from cuikslam.log.reader import OrderCheck
@@ -39,9 +39,13 @@ from cuikslam.narrowing.propagation import DEFAULT_RTOL, Status
 from cuikslam.online.estimate import PoseEstimate
 from cuikslam.online.growing import GrowingGraph
 from cuikslam.online.hypotheses import LiveHypotheses
+from cuikslam.online.window import WINDOW_POSES, tighten_window
 
-__all__ = ["SETTLE_STEP", "Session", "warm_up"]
+__all__ = ["SETTLE_STEP", "WINDOW_WORK", "Session", "warm_up"]
 
+WINDOW_WORK = 500_000.0
+"""Work units the ``lp`` level may spend on the window of each finished pose at most (about
+half a second here; its LPs stop there, soundly)."""
 SETTLE_STEP = 5_000.0
 """Work units of each step of :meth:`Session.settle`, which checks the clock between
 steps."""
@@ -53,6 +57,13 @@ class Session:
 
     Parameters
     ----------
+    consistency : str
+        ``"hull"`` (default): the fixpoint of the narrowing operators. ``"lp"``: also,
+        once a pose is finished and its box given, the polytope-hull operator on the
+        window of the last ``WINDOW_POSES`` finished poses (:mod:`.window`), within
+        ``WINDOW_WORK`` work units and the time :meth:`settle` is given; what it narrows
+        (those poses, the landmarks they see) narrows the boxes given next. Known
+        correspondence only (with unknown correspondence the level is ``hull``).
     rtol : float
         A variable that shrinks by less than this fraction of its width wakes no other
         factor (as in a batch solve).
@@ -83,12 +94,18 @@ class Session:
     def __init__(
         self,
         *,
+        consistency: str = "hull",
         rtol: float = DEFAULT_RTOL,
         work_per_pose: float | None = ONLINE_WORK_PER_POSE,
         path: str = "<session>",
     ) -> None:
+        if consistency not in ("hull", "lp"):
+            raise ValueError(f"an online session narrows at level hull or lp, not {consistency!r}")
+        self.consistency = consistency
         self.path = path
         self.rtol = rtol
+        self._window_due = False
+        self._pose_xs: set[int] = set()
         self.work_per_pose = work_per_pose
         self._check = OrderCheck(path)
         self._records: list[Record] = []
@@ -160,13 +177,29 @@ class Session:
         narrowed yet) to the fixpoint, in steps of ``SETTLE_STEP`` work units; with
         ``until`` (a :func:`time.perf_counter` value), stop after the step that passes it.
         Returns True at the fixpoint."""
-        while (
-            self._live is None and self.refuted is None and (self._touched or len(self._deferred))
-        ):
+        while self._live is None and self.refuted is None:
+            if not (self._touched or len(self._deferred) or self._window_due):
+                return True
             if until is not None and time.perf_counter() >= until:
                 return False
-            self._narrow(SETTLE_STEP)
+            if self._touched or len(self._deferred):
+                self._narrow(SETTLE_STEP)
+            else:
+                self._tighten_window(until)
         return True
+
+    def _tighten_window(self, until: float | None) -> None:
+        """The ``lp`` level on the window of the last finished poses (see ``consistency``)."""
+        self._window_due = False
+        poses = self.finished[-WINDOW_POSES:]
+        seconds = None if until is None else until - time.perf_counter()
+        deadline = Budget.start(WINDOW_WORK, seconds)
+        xs = np.array([self._graph.pose_index(p) for p in poses], dtype=np.int64)
+        shrank, consistent = tighten_window(self._grown, xs, self._pose_xs, deadline)
+        if not consistent:
+            self._refute()
+        elif len(shrank):
+            self._touched.append(self._grown.factors_of(shrank))
 
     # ------------------------------------------------------------------ output
     @property
@@ -254,6 +287,7 @@ class Session:
             box = np.stack([self._grown.lo[i : i + 3], self._grown.hi[i : i + 3]], axis=-1)
         self.finished.append(pose)
         self._finished_set.add(pose)
+        self._window_due = self.consistency == "lp" and self._live is None
         return PoseEstimate(pose, box, time.perf_counter() - received, self.hypotheses)
 
     def _add(self, record: Record) -> None:
@@ -270,6 +304,9 @@ class Session:
         graph, grown = self._graph, self._grown
         graph.add_record(record)
         self._pending_lines.append(record.line)
+        match record:
+            case PosePrior(pose=pose) | Odometry(target=pose) | RelativePose(target=pose):
+                self._pose_xs.add(graph.pose_index(pose))
         if graph.n_variables > grown.n_variables:
             grown.add_variables(*graph.domains(grown.n_variables))
         if graph.n_factors > grown.n_factors:
@@ -331,12 +368,12 @@ class Session:
         )
 
 
-def warm_up(unknown: bool = False) -> None:
+def warm_up(unknown: bool = False, lp: bool = False) -> None:
     """Load the compiled kernels a session calls (from numba's cache, or compile them), so
-    that the latency of the first pose does not include it: a session of two poses, and
-    with ``unknown`` one of two poses whose correspondence is unknown."""
+    that the latency of the first pose does not include it: a session of two poses, with
+    ``unknown`` one whose correspondence is unknown, with ``lp`` at level ``lp``."""
     for named in (True, False) if unknown else (True,):
-        session = Session()
+        session = Session(consistency="lp" if lp and named else "hull")
         session.add(SensorModel(max_range=5.0, fov=3.0))
         session.add(PosePrior(0, (0.0, 0.0), (0.0, 0.0), (0.0, 0.0)))
         session.add(Observation(0, "c", (1.0, 1.1), (0.0, 0.1), "A" if named else None))
@@ -344,3 +381,4 @@ def warm_up(unknown: bool = False) -> None:
         session.add(PosePrior(1, (-5.0, 5.0), (-5.0, 5.0), (-1.0, 1.0)))
         session.add(Observation(1, "c", (0.0, 0.2), (0.0, 0.1), "A" if named else None))
         session.finish()
+        session.settle()
