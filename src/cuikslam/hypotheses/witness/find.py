@@ -191,8 +191,7 @@ def _solve_margins(
                 q, box = _witness_of(model, world, full(zz), meter.deadline)
                 if box is not None:
                     raise _Verified(q, box)
-            r, J = world.residuals(full(zz), True, scale)
-            return r, J
+            return world.residuals(full(zz), True, scale)
 
         ordering, work = world.ordering()
         spend(meter.deadline, work)
@@ -201,11 +200,15 @@ def _solve_margins(
     def factorised(multiply_adds: float) -> None:
         spend(meter.deadline, COSTS["factor_flop"] * multiply_adds)
 
+    def shortfall(p: np.ndarray) -> float:
+        spend(meter.deadline, world.check_cost)
+        return _shortfall(model, p)
+
     z = np.clip(fixed[free], lb, ub)
     try:
         p, box = _witness_of(model, world, full(z), meter.deadline)
         if box is not None or not np.any(free):
-            return p, _shortfall(model, p), box
+            return p, shortfall(p), box
         if centre:
             z = run(None, z, CENTRE_EVALUATIONS, CENTRE_TOLERANCE)
         candidates = []
@@ -213,14 +216,15 @@ def _solve_margins(
             z = run(scale, z, MARGIN_EVALUATIONS, 1e-14)
             p, box = _witness_of(model, world, full(z), meter.deadline)
             if box is not None:
-                return p, _shortfall(model, p), box
-            candidates.append(p)
+                return p, shortfall(p), box
+            candidates.append((shortfall(p), p))
+            spend(meter.deadline, world.check_cost)
             if float(np.max(world.residuals(full(z), False, scale)[0], initial=0.0)) > _HOPELESS:
                 break  # far outside some interval: smaller margins will not help
     except _Verified as found:
-        return found.p, _shortfall(model, found.p), found.box
-    best = min(candidates, key=lambda q: _shortfall(model, q))
-    return best, _shortfall(model, best), None
+        return found.p, shortfall(found.p), found.box
+    residual, best = min(candidates, key=lambda c: c[0])
+    return best, residual, None
 
 
 class WitnessSearch:
