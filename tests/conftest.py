@@ -7,10 +7,13 @@ see a different floating-point world (even ``repr`` of floats changes).
 
 from __future__ import annotations
 
+import importlib
+import pkgutil
 from collections.abc import Iterator
 
 import pytest
 
+import cuikslam
 from cuikslam._fpu import ensure_round_to_nearest
 
 
@@ -28,4 +31,24 @@ def pytest_collectstart(collector: pytest.Collector) -> None:
     after that would parse its float literals in that mode (``-0.3927`` would become
     ``-0.39270000000000005``).
     """
+    ensure_round_to_nearest()
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Import every module of cuikslam before the first test.
+
+    Hypothesis draws some of its numbers from the constants written in the local modules
+    imported so far (its "local constants", read again whenever ``sys.modules`` grows).
+    Without this, a derandomized property test would draw other worlds, at another cost,
+    depending on which tests ran before it and imported what: run alone it would not check
+    the worlds (nor take the time) it does in the whole run. (Helper modules outside the
+    package that a test imports, ``benchmarks/jcbb.py`` and ``build_backend/``, still add
+    their few constants when imported: strings, and one float, 900.0.)
+    """
+    for module in pkgutil.walk_packages(cuikslam.__path__, "cuikslam."):
+        try:
+            importlib.import_module(module.name)
+        except ImportError as missing:  # an optional dependency: that module stays out
+            if (missing.name or "").startswith("cuikslam"):
+                raise
     ensure_round_to_nearest()

@@ -31,6 +31,7 @@ from hypothesis import HealthCheck, assume, given, note, settings
 from hypothesis import strategies as st
 from hypothesis.errors import UnsatisfiedAssumption
 
+from _repeats import once_per_world
 from cuikslam.hypotheses import solve_unknown
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer
@@ -177,6 +178,7 @@ def test_the_generator_makes_every_kind_of_world() -> None:
 # --- (a) the true correspondence given ---------------------------------------------------
 
 
+@once_per_world
 def check_known(world: World, level: str) -> None:
     """(a): the true correspondence given, one hypothesis, never refuted, truth inside."""
     with reported(world, "all"):
@@ -213,6 +215,7 @@ def test_named_search_keeps_the_only_correspondence(world: World) -> None:
 # --- (b), (c) unknown and mixed correspondence -------------------------------------------
 
 
+@once_per_world
 def check_search(world: World, naming: str, level: str) -> None:
     """(b), (c): the search at ``level`` keeps the truth whenever it is complete."""
     with reported(world, naming):

@@ -1,0 +1,63 @@
+"""The helper that skips worlds a property check already passed on (:mod:`_repeats`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import pytest
+
+from _exact import MP
+from _repeats import frozen, once_per_world
+
+
+@dataclass
+class Box:
+    bounds: list[float]
+    truth: dict[str, object] = field(default_factory=dict)
+    tags: set[str] = field(default_factory=set)
+
+
+def test_a_passing_world_is_checked_once_per_arguments() -> None:
+    seen: list[tuple[list[float], str]] = []
+
+    @once_per_world
+    def check(world: Box, level: str) -> None:
+        seen.append((world.bounds, level))
+
+    for world, level in [(Box([1.0, 2.0]), "hull"), (Box([1.0, 2.0]), "hull"),
+                         (Box([1.0, 2.0]), "lp"), (Box([1.0, 2.5]), "hull")]:  # fmt: skip
+        check(world, level)
+    assert seen == [([1.0, 2.0], "hull"), ([1.0, 2.0], "lp"), ([1.0, 2.5], "hull")]
+
+
+def test_a_failing_world_is_checked_again() -> None:
+    calls: list[int] = []
+
+    @once_per_world
+    def check(world: Box) -> None:
+        calls.append(1)
+        raise AssertionError("the truth is outside")
+
+    for _ in range(2):
+        with pytest.raises(AssertionError):
+            check(Box([0.0, 1.0]))
+    assert len(calls) == 2
+
+
+@pytest.mark.parametrize(
+    ("a", "b"),
+    [
+        (Box([0.0, 1.0]), Box([-0.0, 1.0])),  # equal as floats, not as data
+        (Box([1.0], {"x": MP.mpf(1) / 3}), Box([1.0], {"x": MP.mpf(1) / 3 + MP.mpf(2) ** -1000})),
+        (Box([1.0], tags={"a"}), Box([1.0], tags={"b"})),
+        (Box([1.0], {"x": [1.0]}), Box([1.0], {"x": (1.0,)})),
+    ],
+)
+def test_worlds_that_differ_anywhere_are_different(a: Box, b: Box) -> None:
+    assert frozen(a) != frozen(b)
+    assert frozen(a) == frozen(Box(list(a.bounds), dict(a.truth), set(a.tags)))
+
+
+def test_an_unhashable_leaf_is_refused() -> None:
+    with pytest.raises(TypeError):
+        frozen(Box([1.0], {"x": bytearray(b"1")}))
