@@ -16,15 +16,19 @@ import functools
 from collections.abc import Callable, Hashable
 from typing import Any, TypeVar
 
-__all__ = ["frozen", "once_per_world"]
+__all__ = ["DESCRIPTIONS", "frozen", "once_per_world"]
 
 Check = TypeVar("Check", bound=Callable[..., None])
+DESCRIPTIONS = frozenset({"notes"})
+"""Fields of a world that only describe it for Hypothesis' report (the error bounds drawn,
+say, of which the log may use none): left out of its key."""
 
 
 def frozen(value: Any) -> Hashable:
     """``value`` (a world: dataclasses, dicts, lists, sets, floats, exact reals) as a
-    hashable key, equal only for equal values, and telling apart what float equality does
-    not: ``-0.0`` and ``0.0`` (compared by their hex form).
+    hashable key, equal only for equal values (but for the :data:`DESCRIPTIONS` of a
+    dataclass), and telling apart what float equality does not: ``-0.0`` and ``0.0``
+    (compared by their hex form).
 
     Examples
     --------
@@ -40,8 +44,8 @@ def frozen(value: Any) -> Hashable:
     if isinstance(value, set | frozenset):
         return ("set", frozenset(frozen(v) for v in value))
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        fields = dataclasses.fields(value)
-        return (type(value).__name__, tuple(frozen(getattr(value, f.name)) for f in fields))
+        fields = [f.name for f in dataclasses.fields(value) if f.name not in DESCRIPTIONS]
+        return (type(value).__name__, tuple(frozen(getattr(value, name)) for name in fields))
     hash(value)  # str, int, bool, None, an exact real: anything else must say so here
     return value
 

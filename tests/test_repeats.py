@@ -15,6 +15,7 @@ class Box:
     bounds: list[float]
     truth: dict[str, object] = field(default_factory=dict)
     tags: set[str] = field(default_factory=set)
+    notes: str = ""
 
 
 def test_a_passing_world_is_checked_once_per_arguments() -> None:
@@ -61,3 +62,7 @@ def test_worlds_that_differ_anywhere_are_different(a: Box, b: Box) -> None:
 def test_an_unhashable_leaf_is_refused() -> None:
     with pytest.raises(TypeError):
         frozen(Box([1.0], {"x": bytearray(b"1")}))
+
+
+def test_notes_only_describe_a_world() -> None:
+    assert frozen(Box([1.0], notes="errors 0.2")) == frozen(Box([1.0], notes="errors 0.05"))
