@@ -51,7 +51,8 @@ def frozen(value: Any) -> Hashable:
 
 
 def once_per_world(check: Check) -> Check:
-    """``check(world, *args)``, run once for each distinct ``world`` and ``args`` that pass.
+    """``check(world, *args, **kwargs)``, run once for each distinct ``world`` and arguments
+    that pass.
 
     Parameters
     ----------
@@ -66,10 +67,10 @@ def once_per_world(check: Check) -> Check:
     passed: set[Hashable] = set()
 
     @functools.wraps(check)
-    def checked(world: Any, *args: Any) -> None:
-        key = (frozen(world), frozen(args))
+    def checked(world: Any, *args: Any, **kwargs: Any) -> None:
+        key = (frozen(world), frozen(args), frozen(kwargs))
         if key not in passed:
-            check(world, *args)
+            check(world, *args, **kwargs)
             passed.add(key)
 
     return checked  # type: ignore[return-value]

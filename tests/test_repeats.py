@@ -31,6 +31,18 @@ def test_a_passing_world_is_checked_once_per_arguments() -> None:
     assert seen == [([1.0, 2.0], "hull"), ([1.0, 2.0], "lp"), ([1.0, 2.5], "hull")]
 
 
+def test_keyword_arguments_count_too() -> None:
+    seen: list[bool] = []
+
+    @once_per_world
+    def check(world: Box, level: str, certify: bool) -> None:
+        seen.append(certify)
+
+    for certify in (True, True, False):
+        check(Box([1.0]), "hull", certify=certify)
+    assert seen == [True, False]
+
+
 def test_a_failing_world_is_checked_again() -> None:
     calls: list[int] = []
 
