@@ -5,8 +5,9 @@ back one it had (in the default runs of ``test_guarantee.py``, 7 to 15 of every 
 examples, and often the costly ones, since it mutates the examples that took the most
 choices). The checks are deterministic (node limits and work budgets, never the clock), so
 a repeat of a world that passed proves nothing new: :func:`once_per_world` runs a check once
-per distinct world and arguments. A world that failed is never recorded, so Hypothesis
-still replays and shrinks it.
+per distinct world and arguments, :func:`once_per_log` once per distinct log of a world
+(a mixed log that names no observation is the unnamed one). A world that failed is never
+recorded, so Hypothesis still replays and shrinks it.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ import functools
 from collections.abc import Callable, Hashable
 from typing import Any, TypeVar
 
-__all__ = ["DESCRIPTIONS", "frozen", "once_per_world"]
+__all__ = ["DESCRIPTIONS", "frozen", "once_per_log", "once_per_world"]
 
 Check = TypeVar("Check", bound=Callable[..., None])
 DESCRIPTIONS = frozenset({"notes"})
@@ -71,6 +72,38 @@ def once_per_world(check: Check) -> Check:
         key = (frozen(world), frozen(args), frozen(kwargs))
         if key not in passed:
             check(world, *args, **kwargs)
+            passed.add(key)
+
+    return checked  # type: ignore[return-value]
+
+
+def once_per_log(check: Check) -> Check:
+    """``check(world, naming, *args, **kwargs)``, run once for each distinct log that
+    ``world`` gives with ``naming`` (its ``lines(naming)``), world and arguments that pass.
+
+    Which observations a world *could* name (its ``named``) is left out of the key: the
+    log itself says which it does, so a mixed log that names none is checked once with the
+    unnamed log of the same world.
+
+    Parameters
+    ----------
+    check : callable
+        A deterministic check of the log of a world (a dataclass with ``lines(naming)``
+        and ``named``), raising on failure.
+
+    Returns
+    -------
+    callable
+        The same check, returning at once for a log, world and arguments it passed before.
+    """
+    passed: set[Hashable] = set()
+
+    @functools.wraps(check)
+    def checked(world: Any, naming: str, *args: Any, **kwargs: Any) -> None:
+        unnamed = dataclasses.replace(world, named=[])
+        key = (tuple(world.lines(naming)), frozen(unnamed), frozen(args), frozen(kwargs))
+        if key not in passed:
+            check(world, naming, *args, **kwargs)
             passed.add(key)
 
     return checked  # type: ignore[return-value]

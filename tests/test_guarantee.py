@@ -32,7 +32,7 @@ from hypothesis import HealthCheck, assume, given, note, settings
 from hypothesis import strategies as st
 from hypothesis.errors import UnsatisfiedAssumption
 
-from _repeats import once_per_world
+from _repeats import once_per_log, once_per_world
 from cuikslam.hypotheses import solve_unknown
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer
@@ -42,7 +42,9 @@ from cuikslam.results.solution import Solution
 from cuikslam.solver import solve
 from worlds import (
     SEARCH_LEVELS,
+    SEARCHED,
     SENSOR_KINDS,
+    SMALL,
     World,
     log_violations,
     search_level,
@@ -64,13 +66,6 @@ def slow(n: int) -> settings:
     return settings(max_examples=n, deadline=None, suppress_health_check=HEALTH)
 
 
-SMALL = {"poses": (4, 8), "landmarks": (2, 5), "max_observations": 14}
-"""Worlds for the searches: small enough for most searches to complete."""
-SEARCHED = {**SMALL, "max_observations": 10}
-"""Worlds for the searches of the default run: up to 10 observations. Nearly all of their
-searches complete, and as many complete with several survivors as with :data:`SMALL`
-worlds (the slow run's), at a fifth of the cost: the searches of 11 to 14 unlabelled
-observations are the ones that run into ``BUDGET``."""
 TINY = {"poses": (3, 6), "landmarks": (2, 4), "max_observations": 8}
 """Worlds for the ``lp`` searches (an LP per survivor)."""
 BUDGET = {"max_nodes": 2_000}
@@ -221,7 +216,7 @@ def test_named_search_keeps_the_only_correspondence(world: World) -> None:
 # --- (b), (c) unknown and mixed correspondence -------------------------------------------
 
 
-@once_per_world
+@once_per_log
 def check_search(world: World, naming: str, level: str) -> None:
     """(b), (c): the search at ``level`` keeps the truth whenever it is complete."""
     with reported(world, naming):

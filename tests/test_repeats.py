@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import pytest
 
 from _exact import MP
-from _repeats import frozen, once_per_world
+from _repeats import frozen, once_per_log, once_per_world
 
 
 @dataclass
@@ -78,3 +78,31 @@ def test_an_unhashable_leaf_is_refused() -> None:
 
 def test_notes_only_describe_a_world() -> None:
     assert frozen(Box([1.0], notes="errors 0.2")) == frozen(Box([1.0], notes="errors 0.05"))
+
+
+@dataclass
+class Named:
+    """A world whose log names the observations ``named`` says (of ``names``)."""
+
+    names: list[str]
+    named: list[bool]
+
+    def lines(self, naming: str) -> list[str]:
+        keep = {"all": [True] * len(self.names), "none": [False] * len(self.names)}
+        kept = keep.get(naming, self.named)
+        return [n if k else "?" for n, k in zip(self.names, kept, strict=True)]
+
+
+def test_a_log_is_checked_once_whatever_naming_gave_it() -> None:
+    seen: list[tuple[str, ...]] = []
+
+    @once_per_log
+    def check(world: Named, naming: str) -> None:
+        seen.append(tuple(world.lines(naming)))
+
+    check(Named(["A", "B"], [False, False]), "none")
+    check(Named(["A", "B"], [False, False]), "mixed")  # names none: the same log
+    check(Named(["A", "B"], [True, False]), "none")  # the same log again
+    check(Named(["A", "B"], [True, False]), "mixed")
+    check(Named(["A", "C"], [False, False]), "none")
+    assert seen == [("?", "?"), ("A", "?"), ("?", "?")]
