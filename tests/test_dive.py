@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, assume, given, note, settings
 
+from _repeats import once_per_log
 from cuikslam.budget import Budget
 from cuikslam.hypotheses import solve_unknown
 from cuikslam.hypotheses.dive import dive
@@ -24,10 +25,9 @@ from cuikslam.results.association import partition
 from cuikslam.results.solution import PROVEN, Solution
 from cuikslam.simulate import simulate_paper, simulate_random_world
 from cuikslam.solver import solve
-from worlds import World, worlds
+from worlds import SEARCHED, SMALL, World, worlds
 
 HEALTH = [HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large]
-SMALL = {"poses": (4, 8), "landmarks": (2, 5), "max_observations": 14}
 WORK_CUTS = (1.0, 3e3, 1e4, 3e4)
 
 
@@ -37,6 +37,7 @@ def _named(log) -> set[str]:
     }
 
 
+@once_per_log
 def check_dive(world: World, naming: str) -> None:
     log = world.log(naming)
     note("\n".join(world.lines(naming)))
@@ -57,7 +58,7 @@ def check_dive(world: World, naming: str) -> None:
 
 @pytest.mark.parametrize("naming", ["none", "mixed"])
 @settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=HEALTH)
-@given(world=worlds(**SMALL))
+@given(world=worlds(**SEARCHED))
 def test_the_dive_adds_only_survivors_of_the_search(world: World, naming: str) -> None:
     check_dive(world, naming)
 

@@ -13,13 +13,13 @@ import pytest
 from hypothesis import HealthCheck, assume, given, note, settings
 
 from _exact import MP, angle_inside, mpf
+from _repeats import once_per_log
 from cuikslam.hypotheses import solve_unknown
 from cuikslam.results.solution import OUTLIER, Solution
 from cuikslam.solver import solve
-from worlds import Truth, World, worlds
+from worlds import SEARCHED, SMALL, Truth, World, worlds
 
 HEALTH = [HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large]
-SMALL = {"poses": (4, 8), "landmarks": (2, 5), "max_observations": 14}
 NODE_CUTS = (0, 1, 2, 3, 5, 8, 13, 21, 34, 55)
 """Node budgets at which each search is cut."""
 WORK_CUTS = (1.0, 1e3, 1e4, 3e4, 1e5)
@@ -72,6 +72,7 @@ def survivors_hull(solution: Solution) -> tuple[np.ndarray, np.ndarray]:
     return poses, seen
 
 
+@once_per_log
 def check_cuts(world: World, naming: str, cuts: tuple[int, ...]) -> None:
     """Cut the search at each node budget; the envelope always holds the truth, and once
     complete it is the hull of the survivors."""
@@ -93,13 +94,13 @@ def check_cuts(world: World, naming: str, cuts: tuple[int, ...]) -> None:
 
 @pytest.mark.parametrize("naming", ["none", "mixed"])
 @settings(max_examples=8, deadline=None, derandomize=True, suppress_health_check=HEALTH)
-@given(world=worlds(**SMALL))
+@given(world=worlds(**SEARCHED))
 def test_the_envelope_holds_the_truth_at_every_node_budget(world: World, naming: str) -> None:
     check_cuts(world, naming, NODE_CUTS[:6])
 
 
 @settings(max_examples=4, deadline=None, derandomize=True, suppress_health_check=HEALTH)
-@given(world=worlds(**SMALL))
+@given(world=worlds(**SEARCHED))
 def test_the_envelope_holds_the_truth_at_every_work_budget(world: World) -> None:
     log = world.log("none")
     note("\n".join(world.lines("none")))
@@ -173,7 +174,7 @@ def _interrupting(children, n: int, calls: list[int]):
 
 @pytest.mark.parametrize("naming", ["none", "mixed"])
 @settings(max_examples=6, deadline=None, derandomize=True, suppress_health_check=HEALTH)
-@given(world=worlds(**SMALL))
+@given(world=worlds(**SEARCHED))
 def test_ctrl_c_in_the_search_returns_a_result_whose_envelope_holds_the_truth(
     world: World, naming: str
 ) -> None:

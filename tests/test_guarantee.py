@@ -11,8 +11,9 @@ When every measured interval contains its true value:
 
 Worlds come with every kind of ``sensor`` record (or none), landmark priors, clustered
 landmarks and revisits. The default run checks several hundred worlds, the same ones
-each time (``derandomize``); ``python -m pytest -m slow tests/test_guarantee.py`` checks
-thousands of new ones. Set ``CUIKSLAM_GUARANTEE_FAILURES`` to a folder to have each
+each time (``derandomize``), its searches on logs of up to 10 observations;
+``python -m pytest -m slow tests/test_guarantee.py`` checks thousands of new ones, its
+searches on logs of up to 14. Set ``CUIKSLAM_GUARANTEE_FAILURES`` to a folder to have each
 failing world written there as a log and its truth file (the last one written for a test
 is Hypothesis' minimal example).
 """
@@ -31,7 +32,7 @@ from hypothesis import HealthCheck, assume, given, note, settings
 from hypothesis import strategies as st
 from hypothesis.errors import UnsatisfiedAssumption
 
-from _repeats import once_per_world
+from _repeats import once_per_log, once_per_world
 from cuikslam.hypotheses import solve_unknown
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer
@@ -41,7 +42,9 @@ from cuikslam.results.solution import Solution
 from cuikslam.solver import solve
 from worlds import (
     SEARCH_LEVELS,
+    SEARCHED,
     SENSOR_KINDS,
+    SMALL,
     World,
     log_violations,
     search_level,
@@ -63,8 +66,6 @@ def slow(n: int) -> settings:
     return settings(max_examples=n, deadline=None, suppress_health_check=HEALTH)
 
 
-SMALL = {"poses": (4, 8), "landmarks": (2, 5), "max_observations": 14}
-"""Worlds for the searches: small enough for most searches to complete."""
 TINY = {"poses": (3, 6), "landmarks": (2, 4), "max_observations": 8}
 """Worlds for the ``lp`` searches (an LP per survivor)."""
 BUDGET = {"max_nodes": 2_000}
@@ -215,7 +216,7 @@ def test_named_search_keeps_the_only_correspondence(world: World) -> None:
 # --- (b), (c) unknown and mixed correspondence -------------------------------------------
 
 
-@once_per_world
+@once_per_log
 def check_search(world: World, naming: str, level: str) -> None:
     """(b), (c): the search at ``level`` keeps the truth whenever it is complete."""
     with reported(world, naming):
@@ -232,7 +233,7 @@ def check_search(world: World, naming: str, level: str) -> None:
 
 @pytest.mark.parametrize("naming", ["none", "mixed"])
 @ci(100)
-@given(world=worlds(**SMALL))
+@given(world=worlds(**SEARCHED))
 def test_search_keeps_the_truth_at_hull(world: World, naming: str) -> None:
     check_search(world, naming, "hull")
 
@@ -290,7 +291,7 @@ def test_offset_worlds_measure_their_world_and_keep_their_truth(world: World) ->
 
 @pytest.mark.parametrize("naming", ["none", "mixed"])
 @ci(60)
-@given(world=worlds(**SMALL, **OFFSETS))
+@given(world=worlds(**SEARCHED, **OFFSETS))
 def test_search_keeps_the_truth_with_sensor_offsets(world: World, naming: str) -> None:
     """Unknown correspondence from offset sensors: each observation is seen from its
     sensor's pose, and two scans of one pose may see the same landmark."""
@@ -314,12 +315,20 @@ def test_solve_keeps_the_truth(world: World) -> None:
         assert_keeps_truth(world, "mixed", solve(world.log("mixed"), certify_limit=0))
 
 
-def test_most_searches_complete() -> None:
-    """The search tests above must not pass vacuously: most of their searches complete."""
+@pytest.mark.parametrize(
+    "size",
+    [
+        pytest.param(SEARCHED, id="searched"),
+        pytest.param(SMALL, id="small", marks=pytest.mark.slow),
+    ],
+)
+def test_most_searches_complete(size: dict) -> None:
+    """The search tests above must not pass vacuously: most of their searches complete, in
+    the default run's worlds (and in the slow run's, checked in the slow run)."""
     done: Counter[bool] = Counter()
 
     @settings(max_examples=40, deadline=None, derandomize=True, suppress_health_check=HEALTH)
-    @given(worlds(**SMALL))
+    @given(worlds(**size))
     def count(world: World) -> None:
         log = world.log("none")
         done[solve_unknown(log, consistency="hull", **BUDGET).complete] += 1
@@ -342,6 +351,13 @@ def test_slow_known_correspondence(world: World, level: str) -> None:
 @slow(3000)
 @given(world=worlds(**SMALL), naming=st.sampled_from(["none", "mixed", "all"]))
 def test_slow_search_at_hull(world: World, naming: str) -> None:
+    check_search(world, naming, "hull")
+
+
+@pytest.mark.slow
+@slow(1000)
+@given(world=worlds(**SMALL, **OFFSETS), naming=st.sampled_from(["none", "mixed"]))
+def test_slow_search_with_sensor_offsets(world: World, naming: str) -> None:
     check_search(world, naming, "hull")
 
 

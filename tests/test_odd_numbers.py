@@ -49,7 +49,7 @@ from hypothesis import strategies as st
 from hypothesis.errors import UnsatisfiedAssumption
 
 from _exact import angle_inside
-from _repeats import once_per_world
+from _repeats import once_per_log, once_per_world
 from cuikslam.budget import Budget
 from cuikslam.graph.encoding import OBSERVATION, ODOMETRY, RELATIVE, ROTATION
 from cuikslam.graph.kinematic_graph import KinematicGraph
@@ -856,7 +856,7 @@ def check_known(world: OddWorld, level: str) -> None:
         assert_keeps_truth(solution, world, "all")
 
 
-@once_per_world
+@once_per_log
 def check_search(world: OddWorld, naming: str, search: str) -> None:
     """The correspondence search at ``search`` (:data:`SEARCHES`) keeps the truth."""
     named = {"none": [False] * len(world.named), "mixed": world.named}[naming]
@@ -867,7 +867,7 @@ def check_search(world: OddWorld, naming: str, search: str) -> None:
         assert_keeps_truth(solution, world, naming)
 
 
-@once_per_world
+@once_per_log
 def check_solve(world: OddWorld, naming: str, level: str, certify: bool) -> None:
     """The entry point: the search when some observation is unnamed, the fit that ranks
     its survivors, the level, and the witness search when ``certify``."""

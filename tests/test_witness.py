@@ -166,13 +166,21 @@ def test_loop_closure_out_of_reach_does_not_verify() -> None:
     assert not verify_witness(Log(records=records), assignment, point)
 
 
-def test_unproven_hypotheses_stay_not_refuted() -> None:
+@pytest.mark.parametrize(
+    "evaluations",
+    [pytest.param(2_000, id="2000"), pytest.param(None, id="all", marks=pytest.mark.slow)],
+)
+def test_unproven_hypotheses_stay_not_refuted(evaluations: int | None) -> None:
+    """A proven hypothesis given a wrong assignment loses its witness and stays not refuted:
+    no witness within 2,000 residual evaluations (the slow run: certify's whole limit, 148
+    starts and 20,000 evaluations, 19 s)."""
     log, _ = simulate_paper(0)
     solution = solve(log)
     h = solution.best
+    assert h.status == PROVEN and h.witness is not None
     h.assignment = list(h.assignment)
     h.assignment[0] = "L3"
-    certify(log, solution)
+    certify(log, solution, **({} if evaluations is None else {"max_evaluations": evaluations}))
     assert h.status == NOT_REFUTED and h.witness is None
 
 

@@ -39,8 +39,10 @@ from cuikslam.results.solution import Hypothesis, Solution
 
 __all__ = [
     "EDGE",
+    "SEARCHED",
     "SEARCH_LEVELS",
     "SENSOR_KINDS",
+    "SMALL",
     "Truth",
     "World",
     "correspondence",
@@ -58,6 +60,14 @@ PI = MP.pi
 EDGE = 1e-7
 """No landmark is generated closer than this to a visibility boundary (range, field of view,
 nearest margin): on the boundary itself the rules are ambiguous."""
+SMALL: dict[str, Any] = {"poses": (4, 8), "landmarks": (2, 5), "max_observations": 14}
+"""Sizes of :func:`worlds` for the searches of the slow runs: small enough for most
+searches to complete."""
+SEARCHED: dict[str, Any] = {**SMALL, "max_observations": 10}
+"""Sizes of :func:`worlds` for the searches of the default runs: up to 10 observations.
+Nearly all of their searches complete, and as many complete with several survivors as
+with :data:`SMALL` worlds, at a fifth of the cost (``test_guarantee.py``): the searches of
+11 to 14 unlabelled observations are the ones that run into their node budgets."""
 SEARCH_LEVELS: dict[str, dict[str, Any]] = {
     "hull": {"consistency": "hull"},
     "lp": {"consistency": "lp", "strengthen_limit": 10_000},
