@@ -163,11 +163,11 @@ def _interrupting(children, n: int, calls: list[int]):
     """``Explorer.children`` that raises KeyboardInterrupt at its ``n``-th call (Ctrl-C);
     ``calls`` counts them."""
 
-    def patched(explorer, node):
+    def patched(explorer, node, **options):
         calls.append(1)
         if len(calls) == n:
             raise KeyboardInterrupt
-        return children(explorer, node)
+        return children(explorer, node, **options)
 
     return patched
 

@@ -62,7 +62,7 @@ def test_one_declaration_per_scope_reads_and_writes_back() -> None:
     assert [(b.at_most, b.window, b.line) for b in log.outlier_bounds] == [(3, None, 2), (1, 20, 3)]
     assert log_to_lines(log)[1:] == [
         '{"type": "outliers", "at_most": 3}',
-        '{"type": "outliers", "at_most": 1, "window": 20}',
+        '{"type": "outliers", "at_most": 1, "window": 20, "time": 4.5}',
     ]
 
 

@@ -59,6 +59,9 @@ _HOMES: dict[str, str] = {
     "strengthen": "cuikslam.narrowing.consistency",
     "StrengthenReport": "cuikslam.narrowing.consistency",
     "tighten": "cuikslam.narrowing.polytope",
+    # online
+    "Session": "cuikslam.online.session",
+    "PoseEstimate": "cuikslam.online.estimate",
     # results
     "Solution": "cuikslam.results.solution",
     "Hypothesis": "cuikslam.results.solution",
