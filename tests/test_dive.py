@@ -9,6 +9,8 @@ reports a hypothesis.
 
 from __future__ import annotations
 
+from unittest import mock
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, assume, given, note, settings
@@ -17,11 +19,13 @@ from _repeats import once_per_log
 from cuikslam.budget import Budget
 from cuikslam.hypotheses import solve_unknown
 from cuikslam.hypotheses.dive import dive
+from cuikslam.hypotheses.expansions import Expansions
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.tree import SearchLimit
 from cuikslam.hypotheses.witness import certify
 from cuikslam.results.association import partition
+from cuikslam.results.io import solution_to_json
 from cuikslam.results.solution import PROVEN, Solution
 from cuikslam.simulate import simulate_paper, simulate_random_world
 from cuikslam.solver import solve
@@ -162,3 +166,56 @@ def test_the_solver_proves_the_dive_leaf_within_the_budget() -> None:
     assert 0 < stats["dive_proven_work"] <= stats["work_spent"]
     assert solution.hypotheses[0].status == PROVEN
     assert "dive_proven_s" in solution.timings
+
+
+def _without_work(solution: Solution) -> dict:
+    """The result JSON less its timings and the operator applications: the work done
+    once where it was done twice before."""
+    data = solution_to_json(solution)
+    data.pop("timings", None)
+    data["statistics"].pop("operator_applications")
+    return data
+
+
+@once_per_log
+def check_kept_expansions(world: World, naming: str) -> None:
+    log = world.log(naming)
+    note("\n".join(world.lines(naming)))
+    limit = {"consistency": "hull", "max_nodes": 400}
+    reused = solve_unknown(log, **limit)
+    with mock.patch.object(Expansions, "keep", lambda *args: None):
+        again = solve_unknown(log, **limit)
+    assert _without_work(reused) == _without_work(again)
+
+
+@pytest.mark.parametrize("naming", ["none", "mixed"])
+@settings(max_examples=10, deadline=None, derandomize=True, suppress_health_check=HEALTH)
+@given(world=worlds(**SEARCHED))
+def test_the_search_taking_back_the_dive_s_expansions_gives_the_same_result(
+    world: World, naming: str
+) -> None:
+    """The exhaustive search takes back the expansions the dive made
+    (:mod:`cuikslam.hypotheses.expansions`): its result, statistics included, is the one it
+    gets expanding every node itself (a node budget: the same nodes counted), but for the
+    operator applications, fewer by what is no longer done twice."""
+    check_kept_expansions(world, naming)
+
+
+def test_the_search_takes_back_the_dive_s_path() -> None:
+    """On a 60-pose sparse world the dive's path is as long as the log's readings, and the
+    search takes back every expansion on it instead of making it again."""
+    log, _ = simulate_random_world(
+        seed=42, n_poses=60, n_landmarks=15, size=(30.0, 20.0), max_range=6.0, unknown=True
+    )
+    taken: list[bool] = []
+    original = Expansions.take
+
+    def counting(self, node, stats):
+        out = original(self, node, stats)
+        taken.append(out is not None)
+        return out
+
+    with mock.patch.object(Expansions, "take", counting):
+        solution = solve_unknown(log, consistency="hull")
+    assert solution.complete
+    assert sum(taken) >= len(log.observations)

@@ -32,9 +32,9 @@ from cuikslam.results.solution import PROVEN, Hypothesis, Solution
 
 __all__ = ["DIVE_SHARE", "MAX_DISCREPANCIES", "Dive", "dive", "keep_proof", "prove_leaf"]
 
-DIVE_SHARE = 0.25
+DIVE_SHARE = 0.6
 """Share of the search's budget the dive may use (what it does not use goes to the
-exhaustive search)."""
+exhaustive search, which takes back every expansion the dive made: :mod:`.expansions`)."""
 MAX_DISCREPANCIES = 2
 """Departures from the children's order allowed on a path, at most."""
 
@@ -132,7 +132,7 @@ def _probe(
                 return True
             continue
         applications = graph.applications
-        kids, _ = explorer.children(node, narrow=False)
+        kids, _ = explorer.children(node, keep=True)
         found.nodes += 1
         spend(
             limit.deadline,

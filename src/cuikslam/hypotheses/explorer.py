@@ -25,6 +25,7 @@ from cuikslam.budget import Budget
 from cuikslam.hypotheses._shared import EMPTY_OVERLAY, Overlay, SharedGraph
 from cuikslam.hypotheses.ambiguity import AmbiguityLp
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
+from cuikslam.hypotheses.expansions import Expansions
 from cuikslam.hypotheses.local import LocalCheck
 from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.problem import Decision, Problem, observation_rows, region_of, unseen_rows
@@ -87,6 +88,8 @@ class Explorer:
         self.leaf_parts = LEAF_BISECTION_PARTS if problem.has_sensor else 0
         """Parts of the bisection of each leaf (0: leaves are not bisected)."""
         self._pose_xs = np.array(sorted(problem.pose_x.values()), dtype=np.int64)
+        self.expansions = Expansions()
+        """The dive's expansions, for the exhaustive search to take back (:mod:`.expansions`)."""
 
     # ---------------------------------------------------------------- precomputed
     def _completed_poses(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -158,7 +161,9 @@ class Explorer:
             node = self._unseen_scans(node, self.problem.complete_at_root())
         return node
 
-    def children(self, node: Node, narrow: bool = True) -> tuple[list[Node], int]:
+    def children(
+        self, node: Node, keep: bool = False, narrow: bool = True
+    ) -> tuple[list[Node], int]:
         """The children of ``node`` that are not proven impossible, in the order to explore
         them, and the number of options considered.
 
@@ -167,10 +172,24 @@ class Explorer:
         ``AMBIGUITY_LP_GAP`` decisions along a path), and its children are made again from
         the tighter box, which gates most of the candidates out (dense world, 100 poses,
         seed 6: about 300 nodes instead of more than 35,000). ``narrow=False`` skips that
-        step: the dive (:mod:`.dive`), which follows one child, does not need the others
-        cut, and the step costs it more than the rest of a node (a 200-pose sparse world:
-        0.28 s against 0.013 s).
+        step (an online session replaying its live hypotheses, which follows one child of
+        each node).
+
+        ``keep`` keeps the expansion (the dive's: :mod:`.dive`) for a later call on the
+        same node object, by the dive again or by the exhaustive search, which takes it
+        back (:mod:`.expansions`) instead of expanding the node again.
         """
+        if not keep:
+            kept = self.expansions.take(node, self.stats)
+            return kept if kept is not None else self._expand(node, narrow)
+        kept = self.expansions.peek(node)
+        if kept is None:
+            before = replace(self.stats)
+            kept = self._expand(node, narrow)
+            self.expansions.keep(node, *kept, before, self.stats)
+        return kept
+
+    def _expand(self, node: Node, narrow: bool) -> tuple[list[Node], int]:
         out, options = self._children(node)
         if (
             not narrow

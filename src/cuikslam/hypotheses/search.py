@@ -26,7 +26,6 @@ import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import COSTS, Budget, portion, spend
-from cuikslam.hypotheses._shared import SharedGraph
 from cuikslam.hypotheses.bisection import refute_by_bisection
 from cuikslam.hypotheses.dive import DIVE_SHARE, Dive, dive, keep_proof, prove_leaf
 from cuikslam.hypotheses.explorer import Explorer
@@ -100,7 +99,7 @@ def explore(
     that the stages after the search stop at once and the result (with its envelope) is
     returned.
     """
-    stats, graph = explorer.stats, explorer.graph
+    stats = explorer.stats
     stack = start[::-1] if isinstance(start, list) else [start]
     survivors: list[Node] = []
     done = 0.0
@@ -125,7 +124,7 @@ def explore(
             survivors = _best(explorer, survivors, keep + reserve)
         stats.peak_frontier = max(stats.peak_frontier, len(stack))
         if expanded > before and expanded % MAINTAIN_EVERY == 0:
-            stack, survivors = _maintain(graph, stack, survivors)
+            stack, survivors = _maintain(explorer, stack, survivors)
             if progress is not None:
                 progress(int(1000 * done), 1000)
     stats.explored_fraction = min(1.0, done)
@@ -171,13 +170,16 @@ def _step(
 
 
 def _maintain(
-    graph: SharedGraph, stack: list[Node], survivors: list[Node]
+    explorer: Explorer, stack: list[Node], survivors: list[Node]
 ) -> tuple[list[Node], list[Node]]:
-    """Let the shared graph rebase and compact; the nodes re-expressed, same boxes."""
-    nodes = stack + survivors
-    overlays = graph.maintain([n.overlay for n in nodes])
-    nodes = [replace(n, overlay=o) for n, o in zip(nodes, overlays, strict=True)]
-    return nodes[: len(stack)], nodes[len(stack) :]
+    """Let the shared graph rebase and compact; the nodes re-expressed, same boxes (those
+    of the dive's kept expansions too, each node object once, so that a node on the stack
+    is still the one its kept expansion names)."""
+    unique = {id(n): n for n in [*stack, *survivors, *explorer.expansions.nodes()]}
+    overlays = explorer.graph.maintain([n.overlay for n in unique.values()])
+    new = {key: replace(n, overlay=o) for (key, n), o in zip(unique.items(), overlays, strict=True)}
+    explorer.expansions.renamed(new)
+    return [new[id(n)] for n in stack], [new[id(n)] for n in survivors]
 
 
 def _branch_places(log: Log, explorer: Explorer, unexplored: list[list[int]]) -> str:
@@ -325,6 +327,7 @@ def solve_unknown(
         early = dive(explorer, root, SearchLimit(portion(limit.deadline, DIVE_SHARE), max_nodes))
         proof = prove_leaf(explorer, early, prove)
         outcome = explore(explorer, root, limit, keep, tally.add, progress, reserve=keep)
+        explorer.expansions.clear()  # what the search did not take back: its memory
         if outcome.stop_reason is not None and not outcome.survivors and not early.finished:
             # nothing found: the stages after the search have nothing to decide, so the
             # dive goes on with what they would have had (less a reserve for its leaf)
