@@ -53,7 +53,7 @@ _STYLES: dict[str, tuple[str | None, str, dict[str, Any]]] = {
     "envelope_poses": ("pose envelope (any correspondence)", "quad", {"dash": "solid"}),
     "envelope_poses_unbounded": (None, "quad", {"dash": "dashed"}),
     "envelope_landmarks": ("sighted landmark envelope", "quad", {"dash": "dotted"}),
-    "landmarks": ("landmark box", "landmark", {"dash": "solid"}),
+    "landmarks": ("landmark box (colour: its class)", "landmark", {"dash": "solid"}),
     "landmarks_unbounded": ("unbounded landmark (clipped)", "landmark", {"dash": "dashed"}),
     "path": ("path through the box centres", "line", {}),
     "pose_boxes": ("pose box", "pose", {"dash": "solid"}),

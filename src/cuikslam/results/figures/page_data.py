@@ -340,6 +340,7 @@ def correspondence_html(solution: Solution) -> str:
     and the solve's messages."""
     doc = solution.correspondence
     parts: list[str] = []
+    sentence = ""
     if doc is None:
         n = len(solution.hypotheses[0].assignment) if solution.hypotheses else 0
         parts.append(
@@ -359,8 +360,9 @@ def correspondence_html(solution: Solution) -> str:
                 f"Group {g} (observations {html.escape(observations)}): "
                 f"{len(factor.choices)} choices {html.escape(choices)}"
             )
-    if solution.messages:
-        items = "".join(f"<li>{html.escape(m)}</li>" for m in solution.messages)
+    messages = [m for m in solution.messages if m != sentence]  # not the sentence again
+    if messages:
+        items = "".join(f"<li>{html.escape(m)}</li>" for m in messages)
         parts.append(f"<b>Messages of the solve</b><ul style='margin:2px 0'>{items}</ul>")
     return "<br>".join(parts)
 
