@@ -12,6 +12,7 @@ import re
 import shutil
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -100,9 +101,18 @@ def long_synthetic():
     return Solution([hypothesis], consistency="hull"), truth
 
 
+@pytest.fixture(scope="module")
+def envelope_alone(unknown):
+    """A search stopped before its first hypothesis: the envelope alone (the seed's, with
+    its hypotheses dropped)."""
+    solution, truth = unknown
+    return replace(solution, hypotheses=[], complete=False), truth
+
+
 RESULTS = ["known", "unknown", "long_run"]
 """The results whose pages are loaded in the browser (and ``long_synthetic``, whose
-boxes have an unbounded side and an unknown heading, in the render test)."""
+boxes have an unbounded side and an unknown heading, and ``envelope_alone``, in the
+render test)."""
 
 
 # --------------------------------------------------------------------------- the columns
@@ -366,10 +376,11 @@ EXPECTED = {
     ],
     "long_run": ["10,001 poses, ", "boxes drawn", "Known correspondence"],
     "long_synthetic": ["10,000 poses, ", "boxes drawn", "each of the 10,000 observations"],
+    "envelope_alone": ["no hypothesis reported", "search INCOMPLETE", "sighted landmark envelope"],
 }
 
 
-@pytest.mark.parametrize("name", [*RESULTS, "long_synthetic"])
+@pytest.mark.parametrize("name", [*RESULTS, "long_synthetic", "envelope_alone"])
 def test_the_page_renders_in_chromium(name, request, tmp_path):
     solution, truth = request.getfixturevalue(name)
     found, errors = probe(build_page(solution, truth), tmp_path)
@@ -385,8 +396,12 @@ def test_the_page_renders_in_chromium(name, request, tmp_path):
         assert words in found["text"], (words, found["text"][:3000])
     # the slider at 3: the path and the drawn boxes up to the third pose
     moved = found["moved"]
-    assert moved["sizes"]["path"] == 3, moved["sizes"]
-    assert 0 < moved["sizes"]["pose_boxes"] <= 3
+    boxes = "pose_boxes" if solution.hypotheses else "envelope_poses"
+    assert 0 < moved["sizes"][boxes] <= 3 < found["sizes"][boxes], moved["sizes"]
+    if solution.hypotheses:
+        assert moved["sizes"]["path"] == 3, moved["sizes"]
+    else:  # the envelope alone: where each sighted landmark lies, and the truth
+        assert found["sizes"]["envelope_landmarks"] > 0 and found["sizes"]["truth_landmarks"]
     assert f"(3 of {len(pose_order(solution))})" in moved["text"]
     if len(solution.hypotheses) > 1:  # the selector shows the last hypothesis' head
         assert f"Hypothesis #{len(solution.hypotheses)}" in moved["text"]
