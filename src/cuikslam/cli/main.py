@@ -276,12 +276,14 @@ def build_parser() -> argparse.ArgumentParser:
     from cuikslam.cli.calibrate import add_calibrate_parser
     from cuikslam.cli.export import add_export_parser
     from cuikslam.cli.follow import add_follow_parser
+    from cuikslam.cli.view import add_view_parser
     from cuikslam.cli.warm_up import add_warm_up_parser
 
     add_follow_parser(sub)
 
     add_calibrate_parser(sub)
     add_export_parser(sub)
+    add_view_parser(sub)
     add_warm_up_parser(sub)
     return parser
 

@@ -23,6 +23,7 @@ __all__ = [
     "ambiguous_observations",
     "describe",
     "summarize",
+    "summary_from_json",
     "summary_holds",
     "summary_to_json",
 ]
@@ -166,6 +167,25 @@ def summary_to_json(summary: CorrespondenceSummary) -> dict:
         **({} if summary.poses is None else {"pose_hull": summary.poses.tolist()}),
         **_outliers_json(summary),
     }
+
+
+def summary_from_json(document: dict) -> CorrespondenceSummary:
+    """The summary read back from a result's ``correspondence`` document (the inverse of
+    :func:`summary_to_json`; the pose hull, when there is one, is left out).
+
+    Examples
+    --------
+    >>> s = summarize([["A", "A"], ["A", "B"]])
+    >>> back = summary_from_json(summary_to_json(s))
+    >>> back.follows == s.follows and back.factors == s.factors
+    True
+    """
+    factors = [
+        Ambiguity(list(f["observations"]), [list(c) for c in f["choices"]])
+        for f in document.get("factors", [])
+    ]
+    follows = [list(f) for f in document.get("follows", [])]
+    return CorrespondenceSummary(follows, list(document.get("certain", [])), factors)
 
 
 def _outliers_json(summary: CorrespondenceSummary) -> dict:

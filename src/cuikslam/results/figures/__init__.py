@@ -9,6 +9,10 @@ Two layers, as in GTSAM's ``gtsam.utils.plot``:
   (:mod:`.known_unknown`) a log solved with and without its landmark ids side by side
   (``cuikslam paper``'s figure), and :func:`save_figure` writes either atomically.
 
+:func:`build_page` and :func:`write_page` (:mod:`.page`, over the columns of
+:mod:`.page_data`) make an interactive page of a result instead, one self-contained HTML
+file (``cuikslam view``; Bokeh, imported only then: ``pip install "cuikslam[view]"``).
+
 Under them, :mod:`.geometry` holds what needs no Matplotlib (extents, clipping, which
 boxes a long run draws, widths) and :mod:`.artists` the drawing primitives (colours,
 rectangles, the truth's markers, legends). Every name below is importable from here.
@@ -65,6 +69,7 @@ from cuikslam.results.figures.geometry import (
     spread_labels,
 )
 from cuikslam.results.figures.known_unknown import KnownUnknownFigure, plot_known_and_unknown
+from cuikslam.results.figures.page import BokehMissingError, build_page, write_page
 
 __all__ = [
     "DPI",
@@ -76,8 +81,10 @@ __all__ = [
     "TRUTH_COLOR",
     "WIDTH_BINS",
     "WIDTH_PANEL_POSES",
+    "BokehMissingError",
     "Extent",
     "KnownUnknownFigure",
+    "build_page",
     "class_color_map",
     "drawn_poses",
     "plot_comparison_on_axes",
@@ -90,4 +97,5 @@ __all__ = [
     "save_figure",
     "scene_extent",
     "spread_labels",
+    "write_page",
 ]
