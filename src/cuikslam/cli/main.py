@@ -11,7 +11,6 @@ import argparse
 import os
 import sys
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 from cuikslam import __version__
 from cuikslam.budget import DEFAULT_WORK_BUDGET, WORK_PER_POSE
@@ -31,9 +30,6 @@ from cuikslam.cli.commands import (
 )
 from cuikslam.errors import InputFileError
 from cuikslam.options import Level, SolveOptions
-
-if TYPE_CHECKING:
-    pass
 
 __all__ = ["main"]
 
