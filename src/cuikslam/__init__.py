@@ -77,6 +77,7 @@ _HOMES: dict[str, str] = {
     "simulate_random_world": "cuikslam.simulate.random_world",
     "GroundTruth": "cuikslam.simulate.truth",
     "read_truth_file": "cuikslam.simulate.truth",
+    "write_truth_file": "cuikslam.simulate.truth",
 }
 
 __all__ = sorted(_HOMES)
