@@ -28,7 +28,7 @@ from cuikslam.log.records import Log
 from cuikslam.narrowing.consistency import StrengthenReport, resolve_level, strengthen
 from cuikslam.narrowing.outliers import RelaxedReport, narrow_with_outliers
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
-from cuikslam.options import SolveOptions
+from cuikslam.options import SolveOptions, check_option_names
 from cuikslam.outliers import (
     certify_without_outliers,
     hypothesis_outlier_messages,
@@ -173,6 +173,7 @@ def solve(
     hypothesis' ``consistency``, a hypothesis left ``not refuted`` rather than proven, an
     incomplete search, each with a message in ``Solution.messages``.
     """
+    check_option_names(overrides, "solve")
     options = (options or SolveOptions()).replace(**overrides)
     reject_reserved_landmark_id(log)  # a log built in code has not met the reader's check
     ensure_round_to_nearest()
