@@ -223,12 +223,14 @@ def solve(
             "the hypotheses stay 'not refuted', neither proven consistent nor impossible"
         )
     certify_start = time.perf_counter()
+    searched = False  # whether the witness search of the outliers record ran
     if log.outlier_bounds and certify_limit != 0:
-        certify_without_outliers(log, solution, certify, deadline)
+        searched = certify_without_outliers(log, solution, certify, deadline)
         certify_limit = 0  # done: the witness leaves the proven outliers out
-    certified = replace(solution, hypotheses=solution.hypotheses[:certify_limit])
-    certify(log, certified, deadline=deadline)
-    solution.hypotheses[:certify_limit] = certified.hypotheses  # proven ones now rank first
+    if not searched:  # (with certify_limit 0, it only records zero counts)
+        certified = replace(solution, hypotheses=solution.hypotheses[:certify_limit])
+        certify(log, certified, deadline=deadline)
+        solution.hypotheses[:certify_limit] = certified.hypotheses  # proven ones rank first
     if unknown and solution.outliers is not None:  # in the report's final order
         solution.messages.extend(outlier_messages(solution.outliers))
         solution.messages.extend(hypothesis_outlier_messages(log, solution))
