@@ -65,7 +65,7 @@ def hypothesis_of(explorer: Explorer, node: Node) -> Hypothesis:
         assignment[position] = names[n]
     for d, n in zip(p.decisions, node.decisions(), strict=True):
         assignment[d.position] = names[n]
-    pose_ids = sorted(p.pose_x)
+    pose_ids = list(p.pose_x)  # in the order the log first mentions them, as a known solve
     cols = np.array([p.pose_x[q] for q in pose_ids], dtype=np.int64)[:, None] + np.arange(3)
     lcols = xs[order][:, None] + np.arange(2)
     return Hypothesis(
