@@ -317,7 +317,7 @@ def test_named_observations_of_a_mixed_log_keep_the_relaxed_intersection() -> No
     solution = solve(log, consistency="hull", work_budget=None)
     assert [p["observation"] for p in solution.outliers["proven"]] == [0]
     assignments = sorted(h.assignment for h in solution.hypotheses)
-    assert assignments == [["A", "N1"], ["A", "outlier"]]
+    assert assignments == [["A", "+1"], ["A", "outlier"]]
     declared = '{"type": "outliers", "at_most": 0}'
     log = _log(PRIOR, declared, MARK, _sighting(0, (9.0, 9.5)), unlabelled)
     solution = solve(log, consistency="hull", work_budget=None)
