@@ -25,6 +25,7 @@ from cuikslam.log.records import (
     Observation,
     OutlierBound,
 )
+from cuikslam.messages import Message
 from cuikslam.narrowing.outliers import NO_LIMIT, OutlierScope, RelaxedReport
 from cuikslam.results.solution import Hypothesis, Solution
 
@@ -138,10 +139,14 @@ def _declared_text(declared: list[dict[str, Any]]) -> str:
 
 def evaluation_note(summary: dict[str, Any]) -> str:
     """What ``cuikslam evaluate`` says of a result whose log declares outliers."""
-    return (
-        f"the log declares outliers ({_declared_text(summary['declared'])}) and "
-        f"{len(summary['proven'])} were proven: the boxes are guaranteed only if the "
-        "declaration holds (`cuikslam calibrate check LOG --truth TRUTH` says whether it does)"
+    declared, proven = _declared_text(summary["declared"]), len(summary["proven"])
+    return Message(
+        "outliers_declared",
+        f"the log declares outliers ({declared}) and {proven} were proven: the boxes are "
+        "guaranteed only if the declaration holds (checking the log against a truth, "
+        "`cuikslam.results.measurement_check.check_log`, says whether it does)",
+        declared=declared,
+        proven=proven,
     )
 
 

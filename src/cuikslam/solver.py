@@ -25,6 +25,7 @@ from cuikslam.hypotheses.search import solve_unknown
 from cuikslam.hypotheses.witness import certify, fit_hypotheses
 from cuikslam.log.reader import reject_reserved_landmark_id
 from cuikslam.log.records import Log
+from cuikslam.messages import Message
 from cuikslam.narrowing.consistency import StrengthenReport, resolve_level, strengthen
 from cuikslam.narrowing.outliers import RelaxedReport, narrow_with_outliers
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
@@ -257,8 +258,11 @@ def _record_budget(solution: Solution, budget: Budget) -> None:
         )
     if budget.meter.bound == "time":
         solution.messages.append(
-            "the wall-clock cap (--time-budget) stopped a stage before its work budget: "
-            "this result depends on how fast the machine ran, and may differ from run to run"
+            Message(
+                "time_bound",
+                "the wall-clock cap (time_budget) stopped a stage before its work budget: "
+                "this result depends on how fast the machine ran, and may differ from run to run",
+            )
         )
 
 

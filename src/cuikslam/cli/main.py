@@ -21,6 +21,7 @@ from cuikslam.cli._common import (
     int_at_least,
     limit_or_none,
 )
+from cuikslam.cli._messages import worded
 from cuikslam.cli.commands import (
     cmd_evaluate,
     cmd_paper,
@@ -289,7 +290,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.func(args))
     except InputFileError as err:
-        print(f"cuikslam: error: {err}", file=sys.stderr)
+        text = str(err)  # the problem in the command line's words (naming a flag)
+        print(f"cuikslam: error: {text.replace(err.problem, worded(err.problem))}", file=sys.stderr)
         return EXIT_INPUT
     except CommandError as err:
         print(f"cuikslam: error: {err}", file=sys.stderr)
