@@ -19,7 +19,7 @@ from cuikslam.datasets.calibrate import (
 )
 from cuikslam.datasets.mrclam import MrclamBounds
 from cuikslam.datasets.mrclam_files import read_mrclam_tables
-from cuikslam.log.errors import LogFormatError
+from cuikslam.errors import InputFileError
 from test_mrclam import _real, write_dataset
 
 
@@ -103,7 +103,7 @@ def test_bad_bounds_files_are_refused(
 ) -> None:
     path = tmp_path / "bounds.json"
     path.write_text(doc)
-    with pytest.raises(LogFormatError, match=problem):
+    with pytest.raises(InputFileError, match=problem):
         read_bounds_file(path)
     out = tmp_path / "r.jsonl"
     assert main(["import", "mrclam", str(folder), "--robot", "1", "-o", str(out),

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import pytest
 
+from cuikslam.errors import InputFileError
 from cuikslam.hypotheses import solve_unknown
-from cuikslam.log.errors import LogFormatError
 from cuikslam.log.reader import parse_log_lines
 from cuikslam.log.records import ClassPrior, Log
 from cuikslam.log.writer import log_to_lines
@@ -47,7 +47,7 @@ def test_class_record_reads_and_writes_back() -> None:
     ],
 )
 def test_bad_class_records_name_their_line(record: str, message: str) -> None:
-    with pytest.raises(LogFormatError) as caught:
+    with pytest.raises(InputFileError) as caught:
         parse_log_lines([PRIOR, record], path="trip.jsonl")
     assert str(caught.value).startswith("trip.jsonl:2:")
     assert message in str(caught.value)
@@ -56,7 +56,7 @@ def test_bad_class_records_name_their_line(record: str, message: str) -> None:
 def test_a_second_record_for_a_class_is_rejected() -> None:
     lines = [PRIOR, '{"type": "class", "class": "door", "at_most": 2}']
     lines.append('{"type": "class", "class": "door", "min_separation": 1}')
-    with pytest.raises(LogFormatError, match=r":3: a second class record for \"door\""):
+    with pytest.raises(InputFileError, match=r":3: a second class record for \"door\""):
         parse_log_lines(lines)
 
 

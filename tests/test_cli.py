@@ -667,8 +667,23 @@ def test_an_unknown_level_is_refused_with_the_choices() -> None:
 
     with pytest.raises(ValueError, match="unknown consistency level 'box'; choose one of auto"):
         SolveOptions(consistency="box")
-    with pytest.raises(TypeError):
+    with pytest.raises(TypeError, match=r"SolveOptions\.replace\(\) .* 'no_such_option'; the opt"):
         SolveOptions().replace(no_such_option=1)
+
+
+def test_a_mistyped_option_of_solve_names_solve_and_the_close_option() -> None:
+    """The error names the function the user called, not the dataclass behind it, and
+    solves nothing."""
+    import cuikslam
+
+    log, _ = cuikslam.simulate_paper(seed=0)
+    with pytest.raises(TypeError) as caught:
+        cuikslam.solve(log, consistensy="hull")
+    assert str(caught.value) == (
+        "solve() got an unexpected keyword argument 'consistensy'; did you mean 'consistency'?"
+    )
+    with pytest.raises(TypeError, match=r"^solve\(\) .*'max_hypothesis'; did you mean 'max_hyp"):
+        cuikslam.solve(log, max_hypothesis=3)
 
 
 # --------------------------------------------------------------------------- a truth of another log

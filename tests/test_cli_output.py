@@ -274,7 +274,7 @@ def test_check_truth_decides_floats_and_fractions_exactly() -> None:
 
 
 def test_truth_file_with_a_pose_id_twice_is_refused(tmp_path: Path) -> None:
-    from cuikslam.log.errors import LogFormatError
+    from cuikslam.errors import InputFileError
     from cuikslam.simulate.truth import read_truth_file
 
     doc = {
@@ -284,7 +284,7 @@ def test_truth_file_with_a_pose_id_twice_is_refused(tmp_path: Path) -> None:
     }
     path = tmp_path / "t.truth.json"
     path.write_text(json.dumps(doc), encoding="utf-8")
-    with pytest.raises(LogFormatError, match="pose id '07' appears twice"):
+    with pytest.raises(InputFileError, match="pose id '07' appears twice"):
         read_truth_file(path)
     del doc["poses"]["07"]
     path.write_text(json.dumps(doc), encoding="utf-8")

@@ -15,9 +15,9 @@ from _litw import moves_hold_the_truth
 from _litw import write_synthetic as _synthetic
 from cuikslam.cli.main import main
 from cuikslam.datasets import data_dir, read_lost_in_the_woods
+from cuikslam.errors import InputFileError
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.log import read_log_file
-from cuikslam.log.errors import LogFormatError
 from cuikslam.log.writer import write_log_file
 from cuikslam.narrowing.propagation import Status, propagate
 from cuikslam.results.solution import check_truth
@@ -83,21 +83,21 @@ def test_keyframe_observations_only(tmp_path):
 
 
 def test_bad_files_and_windows_are_log_format_errors(tmp_path, capsys):
-    with pytest.raises(LogFormatError, match="no such file"):
+    with pytest.raises(InputFileError, match="no such file"):
         read_lost_in_the_woods(tmp_path / "nope.mat")
     bad = tmp_path / "bad.mat"
     bad.write_text("not a mat file")
-    with pytest.raises(LogFormatError):
+    with pytest.raises(InputFileError):
         read_lost_in_the_woods(bad)
     partial = tmp_path / "partial.mat"
     scipy.io.savemat(partial, {"t": np.zeros((3, 1))})
-    with pytest.raises(LogFormatError, match="lacks variable"):
+    with pytest.raises(InputFileError, match="lacks variable"):
         read_lost_in_the_woods(partial)
     path = tmp_path / "small.mat"
     _synthetic(path)
-    with pytest.raises(LogFormatError, match="leaves the recording"):
+    with pytest.raises(InputFileError, match="leaves the recording"):
         read_lost_in_the_woods(path, start=100, steps=50)
-    with pytest.raises(LogFormatError, match="no valid Vicon pose"):
+    with pytest.raises(InputFileError, match="no valid Vicon pose"):
         read_lost_in_the_woods(path, start=41, steps=10)
     args = ["import", "lost-in-the-woods", os.fspath(tmp_path / "nope.mat")]
     assert main([*args, "-o", os.fspath(tmp_path / "o.jsonl")]) == 2

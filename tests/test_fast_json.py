@@ -16,7 +16,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from cuikslam import _json
-from cuikslam.log.errors import LogFormatError
+from cuikslam.errors import InputFileError
 from cuikslam.log.reader import parse_log_lines
 from cuikslam.results.io import read_result_file, write_result_file
 from cuikslam.results.solution import Hypothesis, Solution
@@ -86,7 +86,7 @@ def test_same_verdict_with_and_without_orjson(decoder: str, line: str, fragment:
     if fragment is None:  # a valid line: read alike either way
         assert parse_log_lines(text).records[1].pose == 99999999999999999999999
         return
-    with pytest.raises(LogFormatError) as caught:
+    with pytest.raises(InputFileError) as caught:
         parse_log_lines(text, path="log.jsonl")
     assert caught.value.line == 2
     assert fragment in str(caught.value)

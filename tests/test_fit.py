@@ -243,7 +243,7 @@ def test_a_declared_outlier_among_named_readings_never_becomes_a_hard_constraint
 
 def test_a_survivor_is_discarded_by_its_partition_whatever_its_new_landmarks_are_named() -> None:
     """A promoted survivor refuted by the stronger level leaves the tally: it is found by
-    its partition, the search naming its new landmark ``+1`` and the report ``N1``."""
+    its partition, whatever its new landmark is named (``+1`` in the search, ``+9`` here)."""
     from cuikslam.hypotheses.explorer import Explorer
     from cuikslam.hypotheses.problem import build_problem
     from cuikslam.hypotheses.tally import Tally
@@ -251,7 +251,7 @@ def test_a_survivor_is_discarded_by_its_partition_whatever_its_new_landmarks_are
     log = parse_log_lines([*NEAR_CONTRADICTION, _reading(0.0)])
     tally = Tally(Explorer(build_problem(log), 1e-3, "hull", None, True), None)
     tally.assignments = [["A", "+1"], ["+1", "A"], ["A", "B"]]
-    tally.discard_assignment(["N1", "A"])
+    tally.discard_assignment(["+9", "A"])
     assert tally.kept() == [["A", "+1"], ["A", "B"]]
 
 

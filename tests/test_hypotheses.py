@@ -350,3 +350,30 @@ def test_the_local_frame_refutes_what_boxes_cannot_and_keeps_the_truth() -> None
     assert {partition(h.assignment) for h in local.hypotheses} <= {
         partition(h.assignment) for h in boxes.hypotheses
     }
+
+
+def test_poses_in_the_order_the_log_first_mentions_them_with_or_without_ids() -> None:
+    """A hypothesis lists its poses as a known-correspondence solve does (the order the
+    log first mentions them), whatever their ids; ``pose_hull`` and the envelope list them
+    by increasing id (docs/result-format.md)."""
+    from cuikslam.log import parse_log_lines
+    from cuikslam.solver import solve
+
+    seen = (
+        '{"type": "observation", "pose": %d, "class": "post", "range": [%s, %s], '
+        '"bearing": [-3.2, 3.2]%s}'
+    )
+    lines = [
+        '{"type": "prior", "pose": 5, "x": [0, 0], "y": [0, 0], "theta": [0, 0]}',
+        '{"type": "odometry", "from": 5, "to": 3, "turn": [0, 0.01], "distance": [1, 1.1]}',
+        '{"type": "odometry", "from": 3, "to": 9, "turn": [0, 0.01], "distance": [1, 1.1]}',
+    ]
+    for pose, r in ((5, 3.0), (3, 2.0), (9, 1.0)):
+        lines.append(seen % (pose, r, r + 0.1, ""))
+    unknown = solve(parse_log_lines(lines), consistency="hull", certify_limit=0)
+    named = [line.replace("}", ', "landmark": "A"}') if '"observation"' in line else line
+             for line in lines]  # fmt: skip
+    known = solve(parse_log_lines(named), consistency="hull", certify_limit=0)
+    assert known.best.pose_ids == [5, 3, 9]
+    assert all(h.pose_ids == [5, 3, 9] for h in unknown.hypotheses)
+    assert unknown.envelope.pose_ids == [3, 5, 9]

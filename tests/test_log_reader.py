@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 
 from cuikslam.log import (
+    InputFileError,
     LandmarkPrior,
-    LogFormatError,
     Observation,
     Odometry,
     PosePrior,
@@ -56,8 +56,8 @@ def landmark(ident: object = "L0", **override: object) -> str:
     return record(**{**fields, **override})
 
 
-def fails(lines: list[str], line: int | None, *fragments: str) -> LogFormatError:
-    with pytest.raises(LogFormatError) as caught:
+def fails(lines: list[str], line: int | None, *fragments: str) -> InputFileError:
+    with pytest.raises(InputFileError) as caught:
         parse_log_lines(lines, path="trip.jsonl")
     err = caught.value
     assert err.path == "trip.jsonl"
@@ -165,11 +165,11 @@ def test_read_log_file_accepts_a_byte_order_mark(tmp_path: Path) -> None:
 
 
 def test_error_attributes_and_pickling() -> None:
-    err = LogFormatError("a.jsonl", 3, "bad thing")
+    err = InputFileError("a.jsonl", 3, "bad thing")
     assert isinstance(err, ValueError)
     assert (err.path, err.line, err.problem) == ("a.jsonl", 3, "bad thing")
     assert str(err) == "a.jsonl:3: bad thing"
-    assert str(LogFormatError(Path("a.jsonl"), None, "bad")) == "a.jsonl: bad"
+    assert str(InputFileError(Path("a.jsonl"), None, "bad")) == "a.jsonl: bad"
     again = pickle.loads(pickle.dumps(err))
     assert (again.path, again.line, again.problem, str(again)) == (
         err.path,
@@ -404,7 +404,7 @@ def test_record_errors_win_over_order_errors() -> None:
 
 def test_missing_file(tmp_path: Path) -> None:
     path = tmp_path / "nope.jsonl"
-    with pytest.raises(LogFormatError) as caught:
+    with pytest.raises(InputFileError) as caught:
         read_log_file(path)
     assert (caught.value.path, caught.value.line) == (str(path), None)
     assert "cannot read the log" in caught.value.problem
@@ -412,7 +412,7 @@ def test_missing_file(tmp_path: Path) -> None:
 
 
 def test_directory_instead_of_file(tmp_path: Path) -> None:
-    with pytest.raises(LogFormatError) as caught:
+    with pytest.raises(InputFileError) as caught:
         read_log_file(tmp_path)
     assert caught.value.line is None
     assert "cannot read the log" in caught.value.problem
@@ -426,7 +426,7 @@ def test_unreadable_file(tmp_path: Path) -> None:
     path.write_text(PRIOR)
     path.chmod(0)
     try:
-        with pytest.raises(LogFormatError) as caught:
+        with pytest.raises(InputFileError) as caught:
             read_log_file(path)
     finally:
         path.chmod(0o600)
@@ -437,7 +437,7 @@ def test_unreadable_file(tmp_path: Path) -> None:
 def test_not_utf8(tmp_path: Path) -> None:
     path = tmp_path / "latin1.jsonl"
     path.write_bytes(PRIOR.encode() + b'\n{"type": "observation", "class": "caf\xe9"}\n')
-    with pytest.raises(LogFormatError) as caught:
+    with pytest.raises(InputFileError) as caught:
         read_log_file(path)
     assert caught.value.line is None
     assert "not UTF-8" in caught.value.problem
@@ -447,16 +447,13 @@ def test_not_utf8(tmp_path: Path) -> None:
 def test_file_errors_carry_file_name_and_line(tmp_path: Path) -> None:
     path = tmp_path / "trip.jsonl"
     path.write_text("\n".join([PRIOR, "# c", odometry(3, 4)]) + "\n")
-    with pytest.raises(LogFormatError, match=r"trip\.jsonl:3: odometry from pose 3"):
+    with pytest.raises(InputFileError, match=r"trip\.jsonl:3: odometry from pose 3"):
         read_log_file(path)
 
 
-def test_one_error_type_for_every_input_file_and_its_former_name(tmp_path) -> None:
-    from cuikslam.errors import InputFileError
-    from cuikslam.log import LogFormatError
+def test_one_error_type_for_every_input_file(tmp_path) -> None:
     from cuikslam.simulate.truth import read_truth_file
 
-    assert LogFormatError is InputFileError
     bad = tmp_path / "trip.truth.json"
     bad.write_text("{", encoding="utf-8")
     with pytest.raises(InputFileError, match=r"trip\.truth\.json"):

@@ -15,9 +15,9 @@ import cuikslam._atomic as atomic
 import cuikslam.log.writer as writer
 from cuikslam._atomic import atomic_open, atomic_write_text
 from cuikslam.log import (
+    InputFileError,
     LandmarkPrior,
     Log,
-    LogFormatError,
     Observation,
     Odometry,
     PosePrior,
@@ -180,7 +180,7 @@ def test_invalid_log_is_not_written_and_old_file_survives(tmp_path: Path) -> Non
     path = tmp_path / "trip.jsonl"
     path.write_text("old content\n")
     no_prior = Log([Odometry(0, 1, (0, 0), (1, 1))])
-    with pytest.raises(LogFormatError) as caught:
+    with pytest.raises(InputFileError) as caught:
         write_log_file(no_prior, path)
     assert caught.value.path == str(path)
     assert "no pose has a prior" in caught.value.problem
@@ -191,7 +191,7 @@ def test_invalid_log_is_not_written_and_old_file_survives(tmp_path: Path) -> Non
 def test_validation_error_names_the_line_in_the_written_file(tmp_path: Path) -> None:
     path = tmp_path / "trip.jsonl"
     log = Log([PosePrior(0, (0, 0), (0, 0), (0, 0)), Observation(0, "door", (2, 1), None)])
-    with pytest.raises(LogFormatError, match=r"trip\.jsonl:2: .*lo > hi"):
+    with pytest.raises(InputFileError, match=r"trip\.jsonl:2: .*lo > hi"):
         write_log_file(log, path)
     assert not path.exists()
 

@@ -15,7 +15,7 @@ from cuikslam.cli.main import main
 from cuikslam.datasets import data_dir
 from cuikslam.datasets.mrclam import MrclamBounds, read_mrclam
 from cuikslam.datasets.mrclam_files import keyframe_times, lagged_command_hulls, velocity_steps
-from cuikslam.log.errors import LogFormatError
+from cuikslam.errors import InputFileError
 
 T0 = 1248444187.0
 HEADER = "# UTIAS Multi-Robot Cooperative Localization and Mapping Dataset\n# synthetic\n#\n#\n"
@@ -175,7 +175,7 @@ def test_a_window(tmp_path: Path) -> None:
 def test_bad_files_name_file_and_line(tmp_path: Path, capsys, edit, message: str) -> None:
     folder = write_dataset(tmp_path / "d", duration=3.0)
     edit(folder)
-    with pytest.raises(LogFormatError, match=re.escape(message)):
+    with pytest.raises(InputFileError, match=re.escape(message)):
         read_mrclam(folder, 1)
     out = tmp_path / "r.jsonl"
     assert main(["import", "mrclam", str(folder), "--robot", "1", "-o", str(out)]) == 2
@@ -279,10 +279,10 @@ def test_tables_read_fast_and_slow_agree(tmp_path: Path) -> None:
     table, lines = read_table_lines(path, 3)
     assert table.tolist() == [[1.0, 2.0, 3.0], [2.5, -1.0, 0.004]] and lines == [3, 5]
     path.write_text("# a\n1.0 2 3\n0.5 nan 3\n")
-    with pytest.raises(LogFormatError, match=r"t\.dat:3: a number is not finite"):
+    with pytest.raises(InputFileError, match=r"t\.dat:3: a number is not finite"):
         read_table_lines(path, 3)
     path.write_text("# only a header\n")
-    with pytest.raises(LogFormatError, match="holds no data lines"):
+    with pytest.raises(InputFileError, match="holds no data lines"):
         read_table_lines(path, 3)
 
 
@@ -290,7 +290,7 @@ def test_other_robots_vicon_is_read_only_when_kept(tmp_path: Path) -> None:
     folder = write_dataset(tmp_path / "d", duration=3.0)
     (folder / "Robot2_Groundtruth.dat").write_text("garbage\n")
     read_mrclam(folder, 1)  # robots dropped: robot 2's file is never read
-    with pytest.raises(LogFormatError, match=r"Robot2_Groundtruth\.dat:1"):
+    with pytest.raises(InputFileError, match=r"Robot2_Groundtruth\.dat:1"):
         read_mrclam(folder, 1, robots="class")
 
 

@@ -317,7 +317,7 @@ def test_named_observations_of_a_mixed_log_keep_the_relaxed_intersection() -> No
     solution = solve(log, consistency="hull", work_budget=None)
     assert [p["observation"] for p in solution.outliers["proven"]] == [0]
     assignments = sorted(h.assignment for h in solution.hypotheses)
-    assert assignments == [["A", "N1"], ["A", "outlier"]]
+    assert assignments == [["A", "+1"], ["A", "outlier"]]
     declared = '{"type": "outliers", "at_most": 0}'
     log = _log(PRIOR, declared, MARK, _sighting(0, (9.0, 9.5)), unlabelled)
     solution = solve(log, consistency="hull", work_budget=None)
@@ -456,6 +456,9 @@ def test_a_witness_leaves_out_only_proven_outliers() -> None:
     solution = solve(log, consistency="hull", work_budget=None)
     assert solution.best.status == "proven consistent"
     assert any("leaves out the 1 proven outlier" in m for m in solution.messages)
+    stats = solution.statistics  # the counts of that witness search, not zeros over them
+    assert stats["proven_hypotheses"] == 1 and stats["undecided_hypotheses"] == 0
+    assert stats["witness_starts"] >= 1 and stats["witness_evaluations"] >= 1
     move = '{"type": "odometry", "from": 0, "to": 1, "turn": [0, 0], "distance": [1, 1]}'
     seen = (
         '{"type": "observation", "pose": %d, "class": "post", "landmark": "B", '
@@ -468,3 +471,21 @@ def test_a_witness_leaves_out_only_proven_outliers() -> None:
     solution = solve(log, consistency="hull", work_budget=1.5e6)  # the witness search: about 2 s
     assert solution.outliers["proven"] == [] and len(solution.hypotheses) == 1
     assert solution.best.status != "proven consistent"
+    stats = solution.statistics
+    assert stats["proven_hypotheses"] == 0 and stats["undecided_hypotheses"] == 1
+    assert stats["witness_starts"] >= 1
+
+
+def test_without_a_witness_search_the_outlier_log_records_zero_counts() -> None:
+    """certify_limit=0 with an outliers record: no search, its counts are there and 0."""
+    log = _log(
+        PRIOR,
+        '{"type": "outliers", "at_most": 1}',
+        MARK,
+        '{"type": "odometry", "from": 0, "to": 1, "turn": [-0.01, 0.01], "distance": [1, 1.1]}',
+        _sighting(0, (4.8, 5.2)),
+        _sighting(1, (9.0, 9.5)),
+    )
+    solution = solve(log, consistency="hull", work_budget=None, certify_limit=0)
+    assert solution.best.status == "not refuted"
+    assert solution.statistics["proven_hypotheses"] == solution.statistics["witness_starts"] == 0

@@ -201,9 +201,9 @@ def test_without_the_outlier_option_the_log_is_refuted() -> None:
     declared = parse_log_lines(_two_poses('{"type": "outliers", "at_most": 1}'))
     solution = solve_unknown(declared, consistency="hull")
     assignments = sorted(h.assignment for h in solution.hypotheses)
-    assert solution.complete and assignments == [["L1", OUTLIER], [OUTLIER, "L1"]]
+    assert solution.complete and assignments == [["+1", OUTLIER], [OUTLIER, "+1"]]
     [h] = [h for h in solution.hypotheses if h.outliers == [1]]  # the true one
-    (x, y), pose1 = h.landmark("L1"), h.pose(1)
+    (x, y), pose1 = h.landmark("+1"), h.pose(1)
     assert x[0] <= 2 <= x[1] and y[0] <= 0 <= y[1]
     assert pose1[0, 0] <= 1 <= pose1[0, 1] and pose1[1, 0] <= 0 <= pose1[1, 1]
     assert solution.statistics["outlier_options"] >= 1
@@ -219,7 +219,7 @@ def test_solve_lists_the_outliers_of_each_hypothesis(tmp_path: Path) -> None:
     assert "hypothesis 1 takes 1 observation(s) as outliers: line 6 (pose 1)" in result.stdout
     assert "1 landmarks, 1 outliers" in result.stdout
     doc = json.loads((tmp_path / "r.json").read_text(encoding="utf-8"))
-    assert doc["hypotheses"][0]["assignment"] == ["L1", "outlier"]
+    assert doc["hypotheses"][0]["assignment"] == ["+1", "outlier"]
     assert "hypothesis 2 takes 1 observation(s) as outliers: line 4 (pose 0)" in result.stdout
     assert doc["outliers"]["hypotheses"] == [
         [{"observation": 1, "line": 6, "pose": 1}],

@@ -18,7 +18,7 @@ from _exact import MP, mpf
 from cuikslam.graph.encoding import RELATIVE
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.log import (
-    LogFormatError,
+    InputFileError,
     RelativePose,
     parse_log_lines,
     read_log_file,
@@ -62,7 +62,7 @@ def test_round_trip(tmp_path):
     ],
 )
 def test_bad_records_are_refused(line, message):
-    with pytest.raises(LogFormatError) as err:
+    with pytest.raises(InputFileError) as err:
         parse_log_lines([PRIOR, line], path="trip.jsonl")
     assert str(err.value).startswith("trip.jsonl:2: ")
     assert message in str(err.value)
@@ -144,7 +144,7 @@ def test_observation_offset_round_trip(tmp_path):
 def test_offsets_and_negative_information_are_refused(sensor_first):
     sensor = '{"type": "sensor", "max_range": 8}'
     lines = [PRIOR, sensor, OFFSET_OBS] if sensor_first else [PRIOR, OFFSET_OBS, sensor]
-    with pytest.raises(LogFormatError, match="observation offsets cannot be combined"):
+    with pytest.raises(InputFileError, match="observation offsets cannot be combined"):
         parse_log_lines(lines, path="trip.jsonl")
 
 

@@ -17,18 +17,19 @@ PRIOR = '{"type": "prior", "pose": 0, "x": [0, 0], "y": [0, 0], "theta": [0, 0]}
 
 
 def test_a_new_landmark_never_takes_a_user_id() -> None:
+    """A new landmark is ``+1``, or ``++1`` when a log id starts with ``+``."""
     log = parse_log_lines(
         [
             PRIOR,
             '{"type": "observation", "pose": 0, "class": "c", "range": [4, 4], '
-            '"bearing": [1.5707963267948966, 1.5707963267948968], "landmark": "N1"}',
+            '"bearing": [1.5707963267948966, 1.5707963267948968], "landmark": "+1"}',
             '{"type": "observation", "pose": 0, "class": "c", "range": [3, 3], '
             '"bearing": [3.141592653589793, 3.1415926535897936]}',
         ]
     )
     (h,) = solve_unknown(log, consistency="hull").hypotheses
-    assert h.assignment == ["N1", "N2"]
-    assert h.landmark_ids == ["N1", "N2"]
+    assert h.assignment == ["+1", "++1"]
+    assert h.landmark_ids == ["+1", "++1"]
 
 
 def test_an_unbounded_box_contains_every_truth() -> None:

@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from _exact import angle_inside, mpf
-from cuikslam.log.errors import LogFormatError
+from cuikslam.errors import InputFileError
 from cuikslam.log.reader import parse_log_lines
 from cuikslam.log.records import Bounds, Log
 from cuikslam.log.writer import log_to_lines
@@ -371,11 +371,11 @@ def test_truth_round_trip(tmp_path, make) -> None:
 def test_malformed_truth_file(tmp_path, text: str, problem: str) -> None:
     path = tmp_path / "truth.json"
     path.write_text(text)
-    with pytest.raises(LogFormatError, match=problem) as caught:
+    with pytest.raises(InputFileError, match=problem) as caught:
         read_truth_file(path)
     assert caught.value.path == str(path)
 
 
 def test_missing_truth_file(tmp_path) -> None:
-    with pytest.raises(LogFormatError, match="cannot read"):
+    with pytest.raises(InputFileError, match="cannot read"):
         read_truth_file(tmp_path / "absent.json")

@@ -84,6 +84,15 @@ def test_the_main_names_are_importable_from_the_package_without_loading_them() -
         cuikslam.no_such_name  # noqa: B018
 
 
+def test_every_file_reader_has_its_writer_at_the_top_level() -> None:
+    import cuikslam
+
+    readers = {n for n in cuikslam.__all__ if n.startswith("read_") and n.endswith("_file")}
+    assert "read_truth_file" in readers
+    for name in readers:
+        assert name.replace("read_", "write_", 1) in cuikslam.__all__, name
+
+
 def test_warm_up_command_loads_every_kernel_a_paper_solve_uses() -> None:
     code = (
         "from cuikslam.cli.main import main\n"

@@ -20,7 +20,7 @@ import pytest
 from _exact import MP, TWO_PI, angle_inside, mpf
 from cuikslam.errors import InputFileError
 from cuikslam.interval.angles import _pi_enclosure
-from cuikslam.log import LogFormatError, parse_log_lines
+from cuikslam.log import parse_log_lines
 from cuikslam.log.reader import read_log_file
 from cuikslam.results.solution import Hypothesis, Solution, check_truth
 from cuikslam.simulate.truth import (
@@ -152,7 +152,7 @@ def test_own_truth_files_check_exactly_against_their_floats(tmp_path: Path) -> N
 def test_malformed_truth_files_name_the_problem(tmp_path: Path, doc: dict, problem: str) -> None:
     path = tmp_path / "truth.json"
     path.write_text(json.dumps(doc))
-    with pytest.raises(LogFormatError, match=problem) as caught:
+    with pytest.raises(InputFileError, match=problem) as caught:
         read_truth_file(path)
     assert caught.value.path == str(path)
     assert "\n" not in str(caught.value)
@@ -169,7 +169,7 @@ def test_malformed_truth_files_name_the_problem(tmp_path: Path, doc: dict, probl
 def test_malformed_json_numbers(tmp_path: Path, text: str, problem: str) -> None:
     path = tmp_path / "truth.json"
     path.write_text(text)
-    with pytest.raises(LogFormatError, match=problem):
+    with pytest.raises(InputFileError, match=problem):
         read_truth_file(path)
 
 

@@ -23,9 +23,11 @@ and landmark id:
 <Status.CONSISTENT: 0>
 >>> result.pose_box(graph.pose_ids[0]).shape, result.landmark_box(graph.landmark_ids[0]).shape
 ((3, 2), (2, 2))
->>> stronger = cuikslam.strengthen(cuikslam.Arrays.of(graph), result.lo, result.hi, "lp", 1e-3, 1)
+>>> stronger = cuikslam.strengthen(graph, result.lo, result.hi, level="lp")
 >>> stronger.is_empty, stronger.lo is result.lo
 (False, True)
+>>> stronger.pose_box(graph.pose_ids[0]).shape
+(3, 2)
 """
 
 import importlib
@@ -77,6 +79,7 @@ _HOMES: dict[str, str] = {
     "simulate_random_world": "cuikslam.simulate.random_world",
     "GroundTruth": "cuikslam.simulate.truth",
     "read_truth_file": "cuikslam.simulate.truth",
+    "write_truth_file": "cuikslam.simulate.truth",
 }
 
 __all__ = sorted(_HOMES)

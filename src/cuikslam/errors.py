@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["InputFileError", "LogFormatError"]
+__all__ = ["InputFileError"]
 
 
 class InputFileError(ValueError):
@@ -28,8 +28,6 @@ class InputFileError(ValueError):
     --------
     >>> str(InputFileError("trip.jsonl", 12, "'range' must be [lo, hi]"))
     "trip.jsonl:12: 'range' must be [lo, hi]"
-    >>> LogFormatError is InputFileError  # the former name, kept
-    True
     """
 
     def __init__(self, path: str | os.PathLike[str], line: int | None, problem: str) -> None:
@@ -42,8 +40,3 @@ class InputFileError(ValueError):
         if self.line is None:
             return f"{self.path}: {self.problem}"
         return f"{self.path}:{self.line}: {self.problem}"
-
-
-LogFormatError = InputFileError
-"""The former name of :class:`InputFileError` (raised for logs first, then for every input
-file)."""

@@ -20,13 +20,15 @@ Examples
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import enum
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any, Literal
 
 from cuikslam.budget import work_budget_for
 
-__all__ = ["Level", "SolveOptions"]
+__all__ = ["Level", "SolveOptions", "check_option_names"]
 
 
 class Level(enum.StrEnum):
@@ -119,4 +121,37 @@ class SolveOptions:
 
     def replace(self, **changes: Any) -> SolveOptions:
         """A copy with ``changes`` (TypeError on a name that is not an option)."""
+        check_option_names(changes, "SolveOptions.replace")
         return dataclasses.replace(self, **changes)
+
+
+def check_option_names(names: Iterable[str], caller: str) -> None:
+    """Refuse a keyword that is not a field of :class:`SolveOptions`.
+
+    Parameters
+    ----------
+    names : iterable of str
+        The keywords given.
+    caller : str
+        The function they were given to, named in the error (e.g. ``"solve"``).
+
+    Raises
+    ------
+    TypeError
+        Naming ``caller``, the keyword and the closest option name (or every option name
+        when none is close).
+
+    Examples
+    --------
+    >>> check_option_names(["consistensy"], "solve")
+    Traceback (most recent call last):
+    ...
+    TypeError: solve() got an unexpected keyword argument 'consistensy'; did you mean 'consistency'?
+    """
+    options = [f.name for f in dataclasses.fields(SolveOptions)]
+    for name in names:
+        if name in options:
+            continue
+        close = difflib.get_close_matches(name, options, n=1)
+        hint = f"did you mean {close[0]!r}?" if close else f"the options are {', '.join(options)}"
+        raise TypeError(f"{caller}() got an unexpected keyword argument {name!r}; {hint}")

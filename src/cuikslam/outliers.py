@@ -25,6 +25,7 @@ from cuikslam.log.records import (
     Observation,
     OutlierBound,
 )
+from cuikslam.messages import Message
 from cuikslam.narrowing.outliers import NO_LIMIT, OutlierScope, RelaxedReport
 from cuikslam.results.solution import Hypothesis, Solution
 
@@ -138,10 +139,14 @@ def _declared_text(declared: list[dict[str, Any]]) -> str:
 
 def evaluation_note(summary: dict[str, Any]) -> str:
     """What ``cuikslam evaluate`` says of a result whose log declares outliers."""
-    return (
-        f"the log declares outliers ({_declared_text(summary['declared'])}) and "
-        f"{len(summary['proven'])} were proven: the boxes are guaranteed only if the "
-        "declaration holds (`cuikslam calibrate check LOG --truth TRUTH` says whether it does)"
+    declared, proven = _declared_text(summary["declared"]), len(summary["proven"])
+    return Message(
+        "outliers_declared",
+        f"the log declares outliers ({declared}) and {proven} were proven: the boxes are "
+        "guaranteed only if the declaration holds (checking the log against a truth, "
+        "`cuikslam.results.measurement_check.check_log`, says whether it does)",
+        declared=declared,
+        proven=proven,
     )
 
 
@@ -226,9 +231,11 @@ def log_without_observations(log: Log, drop: set[int]) -> Log:
 
 def certify_without_outliers(
     log: Log, solution: Solution, certify: Callable[..., Any], deadline: Budget | None
-) -> None:
+) -> bool:
     """Try to prove the best-ranked hypothesis whose outliers, with the proven ones, meet the
-    declaration consistent, with all of them left out.
+    declaration consistent, with all of them left out; True when the witness search ran
+    (its counts, ``proven_hypotheses`` and the ``witness_*`` statistics, are then in
+    ``solution.statistics``).
 
     A verified point that satisfies every constraint but those of the proven outliers
     (fewer than declared, or the solve would have said so) is a world that meets the
@@ -240,7 +247,7 @@ def certify_without_outliers(
     some block of poses): a world without all of them would not meet it.
     """
     if not solution.hypotheses or solution.outliers is None:
-        return
+        return False
     listed = {p["observation"] for p in solution.outliers["proven"]}
     best = next(
         (
@@ -255,7 +262,7 @@ def certify_without_outliers(
             "not certified: each reported hypothesis takes observations as outliers that, with "
             "the proven ones, are more than the outliers record allows, so all stay 'not refuted'"
         )
-        return
+        return False
     proven = listed | set(best.outliers)
     reduced = log_without_observations(log, proven)
     trial = replace(best, assignment=[a for i, a in enumerate(best.assignment) if i not in proven])
@@ -265,7 +272,7 @@ def certify_without_outliers(
             "not certified: a landmark is seen only by proven outliers, so the hypothesis "
             "stays 'not refuted'"
         )
-        return
+        return False
     alone = replace(solution, hypotheses=[trial], messages=[], statistics={}, timings={})
     certify(reduced, alone, deadline=deadline)
     best.status, best.witness = trial.status, trial.witness
@@ -280,3 +287,4 @@ def certify_without_outliers(
         solution.messages.append(
             f"the witness leaves out the {what} and meets every other constraint"
         )
+    return True

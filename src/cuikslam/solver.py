@@ -25,10 +25,11 @@ from cuikslam.hypotheses.search import solve_unknown
 from cuikslam.hypotheses.witness import certify, fit_hypotheses
 from cuikslam.log.reader import reject_reserved_landmark_id
 from cuikslam.log.records import Log
+from cuikslam.messages import Message
 from cuikslam.narrowing.consistency import StrengthenReport, resolve_level, strengthen
 from cuikslam.narrowing.outliers import RelaxedReport, narrow_with_outliers
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
-from cuikslam.options import SolveOptions
+from cuikslam.options import SolveOptions, check_option_names
 from cuikslam.outliers import (
     certify_without_outliers,
     hypothesis_outlier_messages,
@@ -173,6 +174,7 @@ def solve(
     hypothesis' ``consistency``, a hypothesis left ``not refuted`` rather than proven, an
     incomplete search, each with a message in ``Solution.messages``.
     """
+    check_option_names(overrides, "solve")
     options = (options or SolveOptions()).replace(**overrides)
     reject_reserved_landmark_id(log)  # a log built in code has not met the reader's check
     ensure_round_to_nearest()
@@ -222,12 +224,14 @@ def solve(
             "the hypotheses stay 'not refuted', neither proven consistent nor impossible"
         )
     certify_start = time.perf_counter()
+    searched = False  # whether the witness search of the outliers record ran
     if log.outlier_bounds and certify_limit != 0:
-        certify_without_outliers(log, solution, certify, deadline)
+        searched = certify_without_outliers(log, solution, certify, deadline)
         certify_limit = 0  # done: the witness leaves the proven outliers out
-    certified = replace(solution, hypotheses=solution.hypotheses[:certify_limit])
-    certify(log, certified, deadline=deadline)
-    solution.hypotheses[:certify_limit] = certified.hypotheses  # proven ones now rank first
+    if not searched:  # (with certify_limit 0, it only records zero counts)
+        certified = replace(solution, hypotheses=solution.hypotheses[:certify_limit])
+        certify(log, certified, deadline=deadline)
+        solution.hypotheses[:certify_limit] = certified.hypotheses  # proven ones rank first
     if unknown and solution.outliers is not None:  # in the report's final order
         solution.messages.extend(outlier_messages(solution.outliers))
         solution.messages.extend(hypothesis_outlier_messages(log, solution))
@@ -254,8 +258,11 @@ def _record_budget(solution: Solution, budget: Budget) -> None:
         )
     if budget.meter.bound == "time":
         solution.messages.append(
-            "the wall-clock cap (--time-budget) stopped a stage before its work budget: "
-            "this result depends on how fast the machine ran, and may differ from run to run"
+            Message(
+                "time_bound",
+                "the wall-clock cap (time_budget) stopped a stage before its work budget: "
+                "this result depends on how fast the machine ran, and may differ from run to run",
+            )
         )
 
 

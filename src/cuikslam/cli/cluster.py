@@ -19,6 +19,7 @@ from pathlib import Path
 from rich.console import Console
 
 from cuikslam.cli._common import CommandError, write_output
+from cuikslam.cli._messages import worded
 from cuikslam.cluster import INSTALL_HINT
 from cuikslam.log.reader import read_log_file
 from cuikslam.log.records import Log
@@ -145,7 +146,7 @@ def _solve_logs(
         console.print(f"== {path}", highlight=False, markup=False)
         if quiet:
             for message in solution.messages:
-                console.print(message)
+                console.print(worded(message))
         else:
             print_solution(solution, console, table=table, outputs=outputs)
         if solution.refuted:

@@ -18,6 +18,7 @@ from cuikslam.cli._common import (
     check_output_path,
     write_output,
 )
+from cuikslam.cli._messages import worded
 from cuikslam.options import SolveOptions
 
 if TYPE_CHECKING:
@@ -192,7 +193,9 @@ def cmd_plot(args: argparse.Namespace) -> int:
     solution = read_result_file(args.result)
     truth = read_truth_file(args.truth) if args.truth else None
     if not solution.hypotheses and solution.envelope is None:  # with one: the envelope alone
-        raise CommandError(f"{args.result}: no hypothesis to plot ({no_hypothesis(solution)})")
+        raise CommandError(
+            f"{args.result}: no hypothesis to plot ({worded(no_hypothesis(solution))})"
+        )
     if truth is not None:
         check_truth_fits(truth, args.truth, solution, args.result, assignment_optional=True)
 

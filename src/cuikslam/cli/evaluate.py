@@ -12,6 +12,7 @@ from rich.table import Table
 
 from cuikslam._atomic import atomic_write_text
 from cuikslam.cli._common import CommandError, check_figure_path, check_output_path, write_output
+from cuikslam.cli._messages import worded
 from cuikslam.errors import InputFileError
 from cuikslam.log.reader import read_log_file
 from cuikslam.log.records import Log
@@ -161,11 +162,13 @@ def run_evaluate(
     if solution.outliers is not None:
         from cuikslam.outliers import evaluation_note
 
-        notes.append(evaluation_note(solution.outliers))
+        notes.append(worded(evaluation_note(solution.outliers)))
     log = _the_log(log_path, solution.log_path, notes)
     named = set() if log is None else named_landmarks(log)
     if not solution.hypotheses:
-        raise CommandError(f"{result_path}: no hypothesis to evaluate ({no_hypothesis(solution)})")
+        raise CommandError(
+            f"{result_path}: no hypothesis to evaluate ({worded(no_hypothesis(solution))})"
+        )
     if log is not None:
         check_truth_fits(truth, truth_path, log, assignment_optional=True)
     else:

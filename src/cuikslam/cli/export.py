@@ -21,6 +21,7 @@ from cuikslam.cli._common import (
     int_at_least,
     write_output,
 )
+from cuikslam.cli._messages import worded
 from cuikslam.cli.mrclam import _positive
 from cuikslam.errors import InputFileError
 
@@ -97,7 +98,9 @@ def _cmd_export(args: argparse.Namespace) -> int:
 
         solution = read_result_file(args.input)
         if not solution.hypotheses:
-            raise CommandError(f"{args.input}: no hypothesis to export ({no_hypothesis(solution)})")
+            raise CommandError(
+                f"{args.input}: no hypothesis to export ({worded(no_hypothesis(solution))})"
+            )
         if args.hypothesis > len(solution.hypotheses):
             raise CommandError(
                 f"{args.input}: --hypothesis {args.hypothesis}, but the result reports "

@@ -11,7 +11,6 @@ import argparse
 import os
 import sys
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 from cuikslam import __version__
 from cuikslam.budget import DEFAULT_WORK_BUDGET, WORK_PER_POSE
@@ -22,6 +21,7 @@ from cuikslam.cli._common import (
     int_at_least,
     limit_or_none,
 )
+from cuikslam.cli._messages import worded
 from cuikslam.cli.commands import (
     cmd_evaluate,
     cmd_paper,
@@ -31,9 +31,6 @@ from cuikslam.cli.commands import (
 )
 from cuikslam.errors import InputFileError
 from cuikslam.options import Level, SolveOptions
-
-if TYPE_CHECKING:
-    pass
 
 __all__ = ["main"]
 
@@ -295,7 +292,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.func(args))
     except InputFileError as err:
-        print(f"cuikslam: error: {err}", file=sys.stderr)
+        text = str(err)  # the problem in the command line's words (naming a flag)
+        print(f"cuikslam: error: {text.replace(err.problem, worded(err.problem))}", file=sys.stderr)
         return EXIT_INPUT
     except CommandError as err:
         print(f"cuikslam: error: {err}", file=sys.stderr)

@@ -8,6 +8,7 @@ from rich.console import Console
 from rich.table import Table
 
 from cuikslam.cli._common import check_figure_path, check_output_path, write_output
+from cuikslam.cli._messages import worded
 from cuikslam.cli.figure_job import start_figure
 from cuikslam.cli.warm_up import note_compiling
 from cuikslam.results.association import truth_verdict
@@ -24,7 +25,7 @@ __all__ = ["run_paper"]
 def _report_truth(solution: Solution, truth: GroundTruth, console: Console) -> bool:
     verdict = truth_verdict(solution, truth)
     for line in verdict.lines:
-        console.print(line)
+        console.print(worded(line))
     return verdict.ok
 
 
@@ -80,7 +81,7 @@ def _report_unknown(solution: Solution, truth: GroundTruth, console: Console) ->
             "a larger --work-budget decides more of them"
         )
     for message in solution.messages:
-        console.print(message)
+        console.print(worded(message))
     return _report_truth(solution, truth, console)
 
 

@@ -16,6 +16,7 @@ from cuikslam.cli._common import (
     progress_bar,
     write_output,
 )
+from cuikslam.cli._messages import worded
 from cuikslam.cli.warm_up import note_compiling
 from cuikslam.log.reader import read_log_file
 from cuikslam.options import SolveOptions
@@ -61,7 +62,7 @@ def print_solution(
         Files that hold every box (named in the overview).
     """
     for message in solution.messages:
-        console.print(message)
+        console.print(worded(message))
     if solution.envelope is not None and (not solution.complete or len(solution.hypotheses) != 1):
         for line in envelope_lines(solution.envelope, solution.complete):
             console.print(line, highlight=False, markup=False)
@@ -104,7 +105,7 @@ def report_truth(
     held (``outside``, ``unchecked``: see :func:`~cuikslam.results.association.true_outliers`)."""
     verdict = truth_verdict(solution, truth, named, outside, unchecked)
     for line in verdict.lines:
-        console.print(line)
+        console.print(worded(line))
     return verdict.ok
 
 
@@ -176,7 +177,7 @@ def run_solve(
         print_solution(solution, console, table=table, outputs=outputs)
     else:  # no tables, but what the solve found out (e.g. "the log is inconsistent") is kept
         for message in solution.messages:
-            console.print(message)
+            console.print(worded(message))
     status = 0
     outside: list[int] = []  # with an outliers declaration, the true outliers
     unchecked: list[int] = []

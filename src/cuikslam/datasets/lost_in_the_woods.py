@@ -54,6 +54,7 @@ from cuikslam.log.records import (
     Record,
     RelativePose,
 )
+from cuikslam.messages import Message
 from cuikslam.motion import RelativeBounds, compose_relative, compose_steps
 from cuikslam.simulate.truth import GroundTruth
 
@@ -140,8 +141,12 @@ def read_lost_in_the_woods(
         raise ValueError("per-sample odometry bounds and calibrated bounds exclude each other")
     if bounds is not None and keyframe > bounds.max_samples:
         raise InputFileError(
-            path, None, f"keyframes of {keyframe} samples, but the bounds were calibrated on "
-            f"stretches of at most {bounds.max_samples} (calibrate with --keyframe {keyframe})",
+            path, None, Message(
+                "keyframe_beyond_calibration",
+                f"keyframes of {keyframe} samples, but the bounds were calibrated on "
+                f"stretches of at most {bounds.max_samples} (calibrate with keyframe={keyframe})",
+                keyframe=keyframe, max_samples=bounds.max_samples,
+            ),
         )  # fmt: skip
     if range_bound is None:
         range_bound = RANGE_BOUND if bounds is None else bounds.range

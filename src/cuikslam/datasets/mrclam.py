@@ -72,6 +72,7 @@ from cuikslam.datasets.mrclam_files import (
 from cuikslam.errors import InputFileError
 from cuikslam.interval._arith import add, mul
 from cuikslam.log.records import ClassPrior, LandmarkPrior, Log, Observation, PosePrior, Record
+from cuikslam.messages import Message
 from cuikslam.simulate.truth import GroundTruth
 
 __all__ = ["MotionModel", "MrclamBounds", "MrclamImport", "read_mrclam"]
@@ -226,7 +227,13 @@ def read_mrclam(
     own_truth, has_truth = interpolate_poses(tables.groundtruth[robot], times, truth_gap)
     if not has_truth[0]:
         raise InputFileError(
-            tables.folder, None, f"no Vicon pose of robot {robot} at the window start: move --start"
+            tables.folder,
+            None,
+            Message(
+                "no_truth_at_start",
+                f"no Vicon pose of robot {robot} at the window start: move start",
+                robot=robot,
+            ),
         )
 
     x, y, th = own_truth[0]

@@ -9,7 +9,7 @@ times in seconds::
     RobotN_Measurement.dat    time, barcode #, range [m], bearing [rad]
     RobotN_Groundtruth.dat    time, x [m], y [m], theta [rad]
 
-Every problem is reported as a :class:`~cuikslam.log.errors.InputFileError` naming the
+Every problem is reported as a :class:`~cuikslam.errors.InputFileError` naming the
 file and line.
 """
 

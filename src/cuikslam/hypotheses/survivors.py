@@ -15,6 +15,7 @@ from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.problem import Problem
 from cuikslam.hypotheses.tally import Tally
 from cuikslam.hypotheses.tree import Node
+from cuikslam.messages import Message
 from cuikslam.results.association import anonymous_names, partition
 from cuikslam.results.solution import OUTLIER as OUTLIER_MARK
 from cuikslam.results.solution import Hypothesis
@@ -65,7 +66,7 @@ def hypothesis_of(explorer: Explorer, node: Node) -> Hypothesis:
         assignment[position] = names[n]
     for d, n in zip(p.decisions, node.decisions(), strict=True):
         assignment[d.position] = names[n]
-    pose_ids = sorted(p.pose_x)
+    pose_ids = list(p.pose_x)  # in the order the log first mentions them, as a known solve
     cols = np.array([p.pose_x[q] for q in pose_ids], dtype=np.int64)[:, None] + np.arange(3)
     lcols = xs[order][:, None] + np.arange(2)
     return Hypothesis(
@@ -173,9 +174,15 @@ def strengthen_report(
     every = len(report) <= limit
     if not every:
         messages.append(
-            f"{len(report)} hypotheses are reported: the '{level}' level was applied to "
-            f"one of them only, the first in rank order (to all when at most {limit}; raise "
-            "--strengthen-limit); the others' boxes are at least hull-consistent"
+            Message(
+                "strengthen_limit",
+                f"{len(report)} hypotheses are reported: the '{level}' level was applied to "
+                f"one of them only, the first in rank order (to all when at most {limit}; "
+                "raise strengthen_limit); the others' boxes are at least hull-consistent",
+                reported=len(report),
+                level=level,
+                limit=limit,
+            )
         )
     same = labelled is not None and not explorer.problem.has_sensor  # the same constraints
     refuted: list[Entry] = []

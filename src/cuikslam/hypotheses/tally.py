@@ -12,7 +12,7 @@ from cuikslam.hypotheses.envelope import Envelope
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.tree import Node
-from cuikslam.results.association import partition
+from cuikslam.results.association import new_mark, partition
 from cuikslam.results.solution import OUTLIER as OUTLIER_MARK
 
 __all__ = ["MAX_TALLIED", "Tally"]
@@ -28,10 +28,8 @@ class Tally:
         self.explorer = explorer
         self.on_survivor = on_survivor
         self.assignments: list[list[str] | None] = []
-        self.new_mark = "+"
+        self.new_mark = new_mark(explorer.problem.named)
         """Prefix of the landmarks a hypothesis adds (longer if a log id starts with it)."""
-        while any(name.startswith(self.new_mark) for name in explorer.problem.named):
-            self.new_mark += "+"
         self._position: dict[tuple[int, ...], int] = {}
         self.envelope = Envelope(explorer)
         """Every survivor's boxes, and those of the subtrees left unexplored."""

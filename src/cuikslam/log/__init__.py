@@ -1,6 +1,6 @@
 """The log layer: the JSON Lines log format (``docs/log-format.md``) to and from records."""
 
-from cuikslam.log.errors import InputFileError, LogFormatError
+from cuikslam.errors import InputFileError
 from cuikslam.log.reader import parse_log_lines, read_log_file
 from cuikslam.log.records import (
     Bounds,
@@ -21,7 +21,6 @@ __all__ = [
     "InputFileError",
     "LandmarkPrior",
     "Log",
-    "LogFormatError",
     "Observation",
     "Odometry",
     "OutlierBound",

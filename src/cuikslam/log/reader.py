@@ -1,6 +1,6 @@
 """Reading a log: JSON Lines text into a validated :class:`~cuikslam.log.records.Log`.
 
-Every problem raises :class:`~cuikslam.log.errors.InputFileError` naming the file, the
+Every problem raises :class:`~cuikslam.errors.InputFileError` naming the file, the
 line and what is wrong, because a log with a silent mistake yields a wrong map that is
 still "guaranteed".
 """

@@ -49,8 +49,16 @@ from cuikslam.graph.encoding import (
     TA,
     TB,
 )
+from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.narrowing.polytope import LpStatistics, WarmStarts, tighten
-from cuikslam.narrowing.propagation import Arrays, Propagation, Status, narrow
+from cuikslam.narrowing.propagation import (
+    DEFAULT_ROUNDS,
+    DEFAULT_RTOL,
+    Arrays,
+    Propagation,
+    Status,
+    narrow,
+)
 from cuikslam.narrowing.sweeps import polytope_rounds
 from cuikslam.options import Level, SolveOptions
 
@@ -105,12 +113,12 @@ def resolve_level(level: str, n_poses: int) -> str:
 
 
 def strengthen(
-    arrays: Arrays,
+    graph: KinematicGraph | Arrays,
     lo: np.ndarray,
     hi: np.ndarray,
-    level: str,
-    rtol: float,
-    max_rounds: int,
+    level: str = "lp",
+    rtol: float = DEFAULT_RTOL,
+    max_rounds: int = DEFAULT_ROUNDS,
     progress: Callable[[int, int], None] | None = None,
     *,
     deadline: Budget | None = None,
@@ -121,12 +129,17 @@ def strengthen(
 
     Parameters
     ----------
-    arrays : Arrays
-        The graph.
+    graph : KinematicGraph or Arrays
+        The graph, or its arrays as the compiled kernels see them
+        (:meth:`Arrays.of <cuikslam.narrowing.propagation.Arrays.of>`); given the graph,
+        the result answers :meth:`~cuikslam.narrowing.propagation.Propagation.pose_box`
+        and ``landmark_box`` by id.
     lo, hi : numpy.ndarray
-        Bounds of every variable, already at the fixpoint of the factors; narrowed in place.
+        Bounds of every variable, already at the fixpoint of the factors (e.g. the ``lo``
+        and ``hi`` of :func:`~cuikslam.narrowing.propagation.propagate`); narrowed in
+        place.
     level : str
-        One of ``LEVELS``.
+        One of ``LEVELS`` (``"lp"`` by default).
     rtol : float
         Relative gain below which propagation stops requeueing a factor.
     max_rounds : int
@@ -151,7 +164,42 @@ def strengthen(
         Holding ``lo`` and ``hi`` themselves and the operator applications of the level's
         propagations; ``Status.INCONSISTENT`` is a proof (whatever the deadline, an empty
         box is never a guess), otherwise ``Status.CONSISTENT``.
+
+    Examples
+    --------
+    >>> from cuikslam.graph import KinematicGraph
+    >>> from cuikslam.narrowing.propagation import propagate
+    >>> graph = KinematicGraph()
+    >>> graph.add_pose_prior(0, x=(0, 0), y=(0, 0), theta=(0, 0))
+    >>> _ = graph.add_odometry(0, 1, turn=(-0.1, 0.1), distance=(1, 2))
+    >>> fixpoint = propagate(graph)
+    >>> stronger = strengthen(graph, fixpoint.lo, fixpoint.hi, level="lp")
+    >>> stronger.lo is fixpoint.lo, stronger.pose_box(1).shape
+    (True, (3, 2))
     """
+    if isinstance(graph, KinematicGraph):
+        result = _strengthen(
+            Arrays.of(graph), lo, hi, level, rtol, max_rounds, progress, deadline, report,
+            threads,
+        )  # fmt: skip
+        result.graph = graph
+        return result
+    return _strengthen(graph, lo, hi, level, rtol, max_rounds, progress, deadline, report, threads)
+
+
+def _strengthen(
+    arrays: Arrays,
+    lo: np.ndarray,
+    hi: np.ndarray,
+    level: str,
+    rtol: float,
+    max_rounds: int,
+    progress: Callable[[int, int], None] | None,
+    deadline: Budget | None,
+    report: StrengthenReport | None,
+    threads: int | None,
+) -> Propagation:
+    """:func:`strengthen` on the graph's arrays."""
     ensure_round_to_nearest()
     if level not in LEVELS:
         raise ValueError(f"unknown consistency level {level!r}; choose one of {', '.join(LEVELS)}")

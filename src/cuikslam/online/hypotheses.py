@@ -57,7 +57,7 @@ class LiveHypotheses:
     >>> live.update(parse_log_lines(lines[:2]))
     >>> live.update(parse_log_lines(lines), complete=False)
     >>> sorted(live.assignments())
-    [['L1', 'L1'], ['L1', 'L2']]
+    [['+1', '+1'], ['+1', '+2']]
     >>> live.pose_box(1)[0].round(6).tolist()  # x of pose 1, whichever landmark it saw
     [0.5, 0.6]
     """
@@ -120,8 +120,8 @@ class LiveHypotheses:
 
     def assignments(self) -> list[list[str]]:
         """Each live hypothesis' landmark per observation, in log order: the log's ids, the
-        landmarks it adds named as a solve names them (``L1``, ``L2``, ... in order of
-        first sight, or ``N1``, ... when the log names some), ``"outlier"``."""
+        landmarks it adds named as a solve names them (``+1``, ``+2``, ... in order of
+        first sight), ``"outlier"``."""
         explorer = self.explorer
         if explorer is None:
             return []

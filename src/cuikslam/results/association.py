@@ -21,6 +21,7 @@ from collections.abc import Collection, Iterator, Sequence
 from dataclasses import dataclass, field
 
 from cuikslam.log.records import Log
+from cuikslam.messages import Message
 from cuikslam.results.measurement_check import Outside
 from cuikslam.results.solution import (
     OUTLIER,
@@ -71,29 +72,42 @@ def partition(assignment: Sequence[str], named: Collection[str] = frozenset()) -
     ]
 
 
+def new_mark(named: Collection[str]) -> str:
+    """The prefix of the landmarks a hypothesis adds: ``"+"``, longer while one of the log's
+    ids (``named``) starts with it.
+
+    >>> new_mark({"A"}), new_mark({"+1", "B"})
+    ('+', '++')
+    """
+    mark = "+"
+    while any(name.startswith(mark) for name in named):
+        mark += "+"
+    return mark
+
+
 def anonymous_names(named: Collection[str]) -> Iterator[str]:
-    """Names for a hypothesis' unnamed landmarks, in order of first appearance: ``L1``,
-    ``L2``, ... (``N1``, ... when the log names landmarks), never one of the log's ids
-    (``named``).
+    """Names for a hypothesis' unnamed landmarks, in order of first appearance: ``+1``,
+    ``+2``, ... (the k-th landmark the hypothesis adds, as ``docs/result-format.md`` and
+    the ``--survivors`` file name it), never one of the log's ids (``named``: the prefix
+    is ``++`` when a log id starts with ``+``, see :func:`new_mark`).
 
     >>> from itertools import islice
     >>> list(islice(anonymous_names({"A", "N2"}), 3))
-    ['N1', 'N3', 'N4']
+    ['+1', '+2', '+3']
     """
-    prefix = "N" if named else "L"
+    mark = new_mark(named)
     count = 0
     while True:
         count += 1
-        if f"{prefix}{count}" not in named:
-            yield f"{prefix}{count}"
+        yield f"{mark}{count}"
 
 
 def display_names(assignment: Sequence[str], named: Collection[str]) -> list[str]:
     """The assignment with its unnamed landmarks named as a solve reports them
     (:func:`anonymous_names`).
 
-    >>> display_names(["+1", "A", "+2", "+1", "outlier"], {"A", "N1"})
-    ['N2', 'A', 'N3', 'N2', 'outlier']
+    >>> display_names(["+2", "A", "+1", "+2", "outlier"], {"A", "N1"})
+    ['+1', 'A', '+2', '+1', 'outlier']
     """
     fresh = anonymous_names(named)
     names: dict[str, str] = {}
@@ -108,7 +122,8 @@ def paired_landmarks(hypothesis: Hypothesis, truth: GroundTruth) -> dict[str, li
 
     Paired through the association: a landmark of the hypothesis stands for the true
     landmark of every observation the hypothesis assigns to it, whatever the two name
-    them (an unknown-correspondence solve names its landmarks in order of first sighting).
+    them (an unknown-correspondence solve names the landmarks it adds ``+1``, ``+2``, ... in
+    order of first sighting).
     A wrong hypothesis may pair one of its landmarks with several true ones, or with
     ``"outlier"`` (an observation the truth says is an outlier). Without a true assignment
     of the same length, landmarks are paired by name.
@@ -313,8 +328,11 @@ def _hypotheses_verdict(
         return TruthVerdict(
             True,
             [
-                "truth check: the search stopped on its budget before finding a hypothesis "
-                "(incomplete, not a refutation; raise --work-budget)"
+                Message(
+                    "truth_nothing_found",
+                    "truth check: the search stopped on its budget before finding a "
+                    "hypothesis (incomplete, not a refutation; raise work_budget)",
+                )
             ],
         )
     if solution.refuted:
@@ -428,9 +446,14 @@ def _truth_not_reported(
         return TruthVerdict(
             True,
             [
-                f"truth check: the true correspondence is not among the "
-                f"{len(solution.hypotheses)} reported of {survivors} survivors (raise "
-                "--max-hypotheses to see it)"
+                Message(
+                    "truth_unreported",
+                    f"truth check: the true correspondence is not among the "
+                    f"{len(solution.hypotheses)} reported of {survivors} survivors (raise "
+                    "max_hypotheses to see it)",
+                    reported=len(solution.hypotheses),
+                    survivors=survivors,
+                )
             ],
         )
     if solution.complete:
@@ -440,7 +463,11 @@ def _truth_not_reported(
     return TruthVerdict(
         True,
         [
-            "truth check: the true correspondence is not among the survivors found before "
-            "the search stopped on its budget (the search was incomplete; raise --work-budget)"
+            Message(
+                "truth_search_incomplete",
+                "truth check: the true correspondence is not among the survivors found before "
+                "the search stopped on its budget (the search was incomplete; raise "
+                "work_budget)",
+            )
         ],
     )

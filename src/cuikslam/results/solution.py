@@ -17,6 +17,7 @@ import numpy as np
 
 from cuikslam.interval.angles import angle_in
 from cuikslam.log.records import RESERVED_LANDMARK_ID
+from cuikslam.messages import Message
 
 __all__ = [
     "NOT_REFUTED",
@@ -165,13 +166,18 @@ class Solution:
 
 
 def no_hypothesis(solution: Solution) -> str:
-    """Why a result reports no hypothesis, in words."""
+    """Why a result reports no hypothesis, in words (a :class:`~cuikslam.messages.Message`
+    when the cure is an option)."""
     if solution.refuted:
         return "the log was refuted"
     if not solution.complete:
         return "the search stopped on its budget before finding one"
     left = (solution.correspondence or {}).get("survivors", 0)
-    return f"{left} survivors were not kept for the report; raise --max-hypotheses"
+    return Message(
+        "unreported_survivors",
+        f"{left} survivors were not kept for the report; raise max_hypotheses",
+        survivors=left,
+    )
 
 
 @dataclass

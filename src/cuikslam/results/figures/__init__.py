@@ -32,9 +32,9 @@ Drawing conventions
 * The truth, when given, is drawn as black dots with a short heading tick (poses) and
   black crosses (landmarks): the poses the hypothesis has, and the true landmarks its
   landmarks stand for, paired through the association (an unknown-correspondence
-  hypothesis names its landmarks in order of first sighting, whatever the truth calls
-  them). On a long run only the poses whose boxes are drawn get a dot and a tick; a thin
-  line, the true path, runs through all of them.
+  hypothesis names the landmarks it adds ``+1``, ``+2``, ... in order of first sighting,
+  whatever the truth calls them). On a long run only the poses whose boxes are drawn get a
+  dot and a tick; a thin line, the true path, runs through all of them.
 * The envelope of an unknown-correspondence result (boxes that hold the truth whatever the
   correspondence, even when the search stopped on its budget) is drawn as light grey
   outlines under the hypotheses (:func:`plot_envelope_on_axes`), or alone, with where each
