@@ -281,7 +281,7 @@ def test_negative_information_refutes_a_duplicate_landmark() -> None:
     from cuikslam.log import parse_log_lines
 
     solution = solve_unknown(parse_log_lines(lines), consistency="hull")
-    assert [h.assignment for h in solution.hypotheses] == [["L1", "L1"]]
+    assert [h.assignment for h in solution.hypotheses] == [["+1", "+1"]]
     assert solution.statistics["refuted_by_negative_information"] >= 1
     without_sensor = solve_unknown(parse_log_lines(lines[1:]), consistency="hull")
     assert len(without_sensor.hypotheses) == 2  # same door, or a new one
