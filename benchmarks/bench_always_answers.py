@@ -80,7 +80,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0, help="first seed")
     parser.add_argument("--seeds", type=int, default=10)
     parser.add_argument("--landmarks", type=int, default=WORLD["n_landmarks"])
-    parser.add_argument("--classes", help="landmark classes, comma-separated (default: the simulator's three)")
+    parser.add_argument(
+        "--classes", help="landmark classes, comma-separated (default: the simulator's three)"
+    )
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     world = {**WORLD, "n_landmarks": args.landmarks}
@@ -101,7 +103,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{r['seed']:>10} {r['observations']:>10} {r['proven']!s:>10} {r['early']!s:>10} "
               f"{r['early_work']:>10,} {early_s:>10} {r['hypotheses']:>10} "
               f"{r['complete']!s:>10} {r['truth']!s:>10} {r['envelope']!s:>10} "
-              f"{r['work_spent']:>10,} {r['wall_s']:>10.1f} {r['cpu_s']:>10.1f} {r['load']:>10.1f}")  # fmt: skip
+              f"{r['work_spent']:>10,} {r['wall_s']:>10.1f} {r['cpu_s']:>10.1f} "
+              f"{r['load']:>10.1f}")  # fmt: skip
         sys.stdout.flush()
     n = len(rows)
     keys = ("proven", "early", "complete", "truth", "envelope")
