@@ -152,3 +152,48 @@ def test_truth_check_with_declared_outliers_and_unknown_correspondence(name, sai
     done = subprocess.run([*run, "--no-table"], capture_output=True, text=True)
     assert done.returncode == 0, done.stdout + done.stderr
     assert said in done.stdout
+
+
+@pytest.mark.parametrize("fov", [2 * np.pi, 2.0])
+def test_no_variable_of_a_search_problem_holds_an_empty_box(fov: float) -> None:
+    """A sensor that sees all around has no out-of-view arc. It was once held by a variable
+    of box [1, 0]: empty, which the lp level's check of the whole box read as a proof that
+    every hypothesis is impossible (a 1,000-pose simulated world, refuted with its truth)."""
+    from dataclasses import replace
+
+    from cuikslam.hypotheses.problem import build_problem
+    from cuikslam.simulate import simulate_random_world
+
+    log, _ = simulate_random_world(seed=0, n_poses=6, n_landmarks=3, unknown=True)
+    log = replace(log, records=[replace(log.sensor, fov=fov), *log.records[1:]])
+    problem = build_problem(log)
+    assert problem.has_sensor and log.sensor.fov == fov
+    assert np.all(problem.lo <= problem.hi)
+    assert (problem.arc_var < 0) == (fov >= 2 * np.pi)
+
+
+def test_a_long_log_seen_all_around_keeps_its_truth_at_lp() -> None:
+    """500 poses, a sensor that sees all around, one reading without its landmark id: the
+    lp level sweeps the chain in two parts and intersects their boxes; the empty box that
+    held "no bearing out of view" made that intersection empty and the log "inconsistent"
+    (the true hypothesis refuted). Now the true hypothesis is the one survivor and its boxes
+    hold the truth."""
+    from dataclasses import replace
+
+    from cuikslam.simulate import simulate_random_world
+
+    log, truth = simulate_random_world(
+        seed=0, n_poses=500, n_landmarks=6, size=(30.0, 20.0), max_range=3.0
+    )
+    assert log.sensor.fov >= 2 * np.pi
+    records = list(log.records)
+    observations = [i for i, r in enumerate(records) if type(r).__name__ == "Observation"]
+    unlabelled = observations[len(observations) // 2]
+    records[unlabelled] = replace(records[unlabelled], landmark=None)
+    solution = solve_unknown(replace(log, records=records), consistency="lp")
+    [h] = solution.hypotheses
+    assert h.consistency == "lp"
+    assert h.assignment == [r.landmark for r in log.observations]
+    landmarks = dict(zip(truth.landmark_ids, truth.landmarks_xy, strict=True))
+    report = check_truth(h, truth.pose_ids, truth.poses_xyt, landmarks)
+    assert report.ok, report

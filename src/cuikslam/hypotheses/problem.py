@@ -102,6 +102,9 @@ class Problem:
     has_sensor: bool
     radius_var: dict[int, int] = field(default_factory=dict)
     arc_var: int = -1
+    """The variable holding the bearings out of the sensor's view (a constant), or -1 for a
+    sensor that sees all around: no variable ever holds an empty box, which would read as a
+    proof of inconsistency wherever the whole box is checked."""
     n_observations: int = 0
     class_priors: dict[str, ClassPrior] = field(default_factory=dict)
     """The user's priors on each class of landmarks (count, separation, region)."""
@@ -302,7 +305,7 @@ def _add_sensor_variables(problem: Problem, b: Variables, log: Log) -> None:
             radius = min(radius, limit)
         problem.radius_var[pose] = b.new((radius, radius))
     arc = out_of_view_arc(sensor.fov)
-    problem.arc_var = b.new((1.0, 0.0) if arc is None else arc)  # empty: every bearing in view
+    problem.arc_var = -1 if arc is None else b.new(arc)
 
 
 def observation_rows(problem: Problem, decision: Decision, landmark_xs: np.ndarray) -> np.ndarray:
@@ -319,7 +322,8 @@ def unseen_rows(
     problem: Problem, pose_xs: np.ndarray, radius_vars: np.ndarray, landmark_xs: np.ndarray
 ) -> np.ndarray:
     """UNSEEN rows: pose ``pose_xs[i]`` (visibility radius ``radius_vars[i]``) did not see the
-    landmark at x ``landmark_xs[i]``."""
+    landmark at x ``landmark_xs[i]``; their angle slot is the out-of-view arc's variable, -1
+    when the sensor sees all around."""
     rows = np.empty((len(pose_xs), 1 + N_SLOTS), dtype=np.int64)
     rows[:, [KIND, TB, ANGLE]] = (UNSEEN, -1, problem.arc_var)
     rows[:, XA], rows[:, YA], rows[:, TA] = pose_xs, pose_xs + 1, pose_xs + 2

@@ -270,12 +270,16 @@ def _narrow_relative(
 
 @jit
 def _narrow_unseen(lo: np.ndarray, hi: np.ndarray, row: np.ndarray, rtol: float) -> int:
-    """The UNSEEN factor: narrow pose a and landmark b (angle and length slots are constants)."""
+    """The UNSEEN factor: narrow pose a and landmark b (angle and length slots are constants;
+    no angle slot, -1, for a sensor that sees all around: no bearing is out of view)."""
     ixa, iya, ita, ixb, iyb = row[XA], row[YA], row[TA], row[XB], row[YB]
     dxlo, dxhi = sub(lo[ixb], hi[ixb], lo[ixa], hi[ixa])
     dylo, dyhi = sub(lo[iyb], hi[iyb], lo[iya], hi[iya])
+    arc_lo, arc_hi = INF, -INF  # the empty arc
+    if row[ANGLE] >= 0:
+        arc_lo, arc_hi = lo[row[ANGLE]], hi[row[ANGLE]]
     dxlo, dxhi, dylo, dyhi, talo, tahi = unseen_contract(
-        dxlo, dxhi, dylo, dyhi, lo[ita], hi[ita], lo[row[ANGLE]], hi[row[ANGLE]], lo[row[LENGTH]]
+        dxlo, dxhi, dylo, dyhi, lo[ita], hi[ita], arc_lo, arc_hi, lo[row[LENGTH]]
     )
     if dxlo > dxhi:
         return EMPTY_FACTOR
