@@ -26,10 +26,10 @@ from cuikslam.hypotheses.witness import certify, fit_hypotheses
 from cuikslam.log.reader import reject_reserved_landmark_id
 from cuikslam.log.records import Log
 from cuikslam.messages import Message
-from cuikslam.narrowing.consistency import StrengthenReport, resolve_level, strengthen
+from cuikslam.narrowing.consistency import StrengthenReport, strengthen
 from cuikslam.narrowing.outliers import RelaxedReport, narrow_with_outliers
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
-from cuikslam.options import SolveOptions, check_option_names
+from cuikslam.options import Level, SolveOptions
 from cuikslam.outliers import (
     certify_without_outliers,
     hypothesis_outlier_messages,
@@ -147,8 +147,8 @@ def solve(
     **overrides
         Fields of :class:`~cuikslam.options.SolveOptions` (``consistency``,
         ``max_hypotheses``, ``strengthen_limit``, ``strengthen_during``,
-        ``certify_limit``, ``rtol``, ``work_budget``, ``time_budget``) replacing those of
-        ``options``.
+        ``certify_limit``, ``rtol``, ``work_budget``, ``time_budget``, ``threads``,
+        ``max_nodes``, ``local_frame``) replacing those of ``options``.
 
     Returns
     -------
@@ -174,25 +174,19 @@ def solve(
     hypothesis' ``consistency``, a hypothesis left ``not refuted`` rather than proven, an
     incomplete search, each with a message in ``Solution.messages``.
     """
-    check_option_names(overrides, "solve")
-    options = (options or SolveOptions()).replace(**overrides)
+    options = SolveOptions.merged(options, overrides, "solve")
     reject_reserved_landmark_id(log)  # a log built in code has not met the reader's check
     ensure_round_to_nearest()
     unknown = log.has_unknown_correspondence
-    lp = options.consistency.value != "hull" or (unknown and options.strengthen_during != 0)
+    lp = options.consistency is not Level.HULL or (unknown and options.strengthen_during != 0)
     warm_up_s = warm_up(unknown, lp)
     start = time.perf_counter()
     n_poses = len(log.pose_ids)
     deadline = Budget.start(options.work_for(n_poses), options.time_budget)
-    consistency = resolve_level(options.consistency.value, n_poses)
-    if log.has_unknown_correspondence:
+    if unknown:
         solution = (search or solve_unknown)(
             log,
-            consistency=consistency,
-            max_hypotheses=options.max_hypotheses,
-            strengthen_limit=options.strengthen_limit,
-            strengthen_during=options.strengthen_during,
-            rtol=options.rtol,
+            options,
             progress=progress,
             deadline=portion(deadline, SEARCH_SHARE),
             on_survivor=on_survivor,
@@ -209,13 +203,13 @@ def solve(
                 log,
                 report,
                 portion(deadline, FIT_SHARE),
-                known=partial(solve_labelled, log, rtol=options.rtol)
+                known=partial(solve_labelled, log, rtol=options.rtol, threads=options.threads)
                 if has_labelled_logs(log)
                 else None,
             ),
         )
     else:
-        solution = _solve_known(log, consistency, options.rtol, progress, deadline, options.threads)
+        solution = _solve_known(log, options, progress, deadline)
     certify_limit = options.certify_limit
     if n_poses > CERTIFY_MAX_POSES and certify_limit != 0 and solution.hypotheses:
         certify_limit = 0  # see CERTIFY_MAX_POSES
@@ -267,17 +261,13 @@ def _record_budget(solution: Solution, budget: Budget) -> None:
 
 
 def _solve_known(
-    log: Log,
-    consistency: str,
-    rtol: float,
-    progress: ProgressCallback | None,
-    deadline: Budget | None,
-    threads: int | None = None,
+    log: Log, options: SolveOptions, progress: ProgressCallback | None, deadline: Budget | None
 ) -> Solution:
     start = time.perf_counter()
+    consistency, rtol = options.consistency, options.rtol
     assignment = [str(o.landmark) for o in log.observations]
     graph = KinematicGraph.from_log(log)
-    report = StrengthenReport(level=consistency)
+    report = StrengthenReport(level=str(consistency))
     outliers = None
     if log.outlier_bounds:
         relaxed = RelaxedReport(strengthen=StrengthenReport(level="hull"))
@@ -285,6 +275,7 @@ def _solve_known(
         result = narrow_with_outliers(
             Arrays.of(graph), lo, hi, outlier_scope(log, graph), consistency, rtol,
             DEFAULT_ROUNDS, deadline=portion(deadline, STRENGTHEN_SHARE), report=relaxed,
+            threads=options.threads,
         )  # fmt: skip
         report = relaxed.strengthen
         outliers = outliers_to_json(log, relaxed)
@@ -299,7 +290,7 @@ def _solve_known(
         strengthened = strengthen(
             Arrays.of(graph), result.lo, result.hi, consistency, rtol, DEFAULT_ROUNDS,
             progress, deadline=portion(deadline, STRENGTHEN_SHARE), report=report,
-            threads=threads,
+            threads=options.threads,
         )  # fmt: skip
         result.applications += strengthened.applications
         result.status = strengthened.status
@@ -333,7 +324,7 @@ def _solve_known(
             statistics=statistics,
             timings={"solve_s": elapsed},
             log_path=log.path,
-            consistency=consistency,
+            consistency=str(consistency),
             messages=messages,
             outliers=outliers,
         )
@@ -349,12 +340,12 @@ def _solve_known(
     )
 
 
-def budget_message(level: str, report: StrengthenReport) -> str:
+def budget_message(level: Level | str, report: StrengthenReport) -> str:
     """The message of a stronger level cut short by its budget.
 
     Parameters
     ----------
-    level : str
+    level : Level or str
         The level asked for.
     report : StrengthenReport
         What :func:`~cuikslam.narrowing.consistency.strengthen` reached.

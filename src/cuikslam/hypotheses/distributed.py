@@ -39,9 +39,7 @@ from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.search import (
-    DEFAULT_MAX_HYPOTHESES,
-    DEFAULT_STRENGTHEN_DURING,
-    DEFAULT_STRENGTHEN_LIMIT,
+    NOT_SEARCH_OPTIONS,
     SEARCH_SHARE,
     Rank,
     _rank_key,
@@ -58,8 +56,7 @@ from cuikslam.hypotheses.subtrees import (
 from cuikslam.hypotheses.tally import Tally
 from cuikslam.hypotheses.tree import Node, SearchLimit, SearchStatistics
 from cuikslam.log.records import Log
-from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
-from cuikslam.narrowing.propagation import DEFAULT_RTOL
+from cuikslam.options import SolveOptions
 from cuikslam.results.solution import Hypothesis, Solution
 
 __all__ = [
@@ -154,24 +151,19 @@ def _refute_task(bisections: list[Bisection], seconds: float | None, each: int) 
 
 def search_distributed(
     log: Log,
+    options: SolveOptions | None = None,
     *,
     client: Any,
-    consistency: str = DEFAULT_LEVEL,
-    max_hypotheses: int = DEFAULT_MAX_HYPOTHESES,
-    strengthen_limit: int = DEFAULT_STRENGTHEN_LIMIT,
-    strengthen_during: int | None = DEFAULT_STRENGTHEN_DURING,
-    rtol: float = DEFAULT_RTOL,
     progress: Callable[[int, int], None] | None = None,
     deadline: Budget | None = None,
-    max_nodes: int | None = None,
     on_survivor: Callable[[list[str]], None] | None = None,
-    local_frame: bool = True,
     quantum_s: float | None = DEFAULT_QUANTUM_S,
     quantum_nodes: int | None = None,
     on_result: Callable[[SubtreeResult], None] | None = None,
     on_unexplored: Callable[[list[Prefix]], None] | None = None,
     rank: Rank | None = None,
     prove: Callable[[Hypothesis], None] | None = None,
+    **overrides: Any,
 ) -> Solution:
     """:func:`~cuikslam.hypotheses.solve_unknown` with its subtrees explored on ``client``'s
     workers (a :class:`distributed.Client`); the same parameters, and:
@@ -196,16 +188,17 @@ def search_distributed(
         ``lost_on_replay`` and ``worker_cpu_s``; ``peak_frontier`` is the largest of
         any task.
     """
+    options = SolveOptions.merged(options, overrides, "search_distributed", NOT_SEARCH_OPTIONS)
+    max_nodes = options.max_nodes
     start = time.perf_counter()
     ensure_round_to_nearest()
-    consistency = resolve_level(consistency, len(log.pose_ids))
-    explorer = Explorer(build_problem(log), rtol, consistency, strengthen_during, local_frame)
+    explorer = Explorer.of(build_problem(log), options)
     explorer.deadline = deadline
     messages: list[str] = []
     root = explorer.root()
     tally = Tally(explorer, on_survivor)
     tally.envelope.set_root(root)  # the fallback for unexplored prefixes
-    keep = max(1, max_hypotheses)
+    keep = max(1, options.max_hypotheses)
     searching = portion(deadline, SEARCH_SHARE)  # the rest decides its survivors
     run = _Run(explorer, searching, max_nodes, keep)
     found: list[Node] = []
@@ -218,14 +211,13 @@ def search_distributed(
         proof = prove_leaf(explorer, early, prove)
         prefixes = run.split(root, SPLIT_PER_SLOT * slots)
         split_s = time.perf_counter() - start
-        options = TaskOptions(
-            key=uuid.uuid4().hex, consistency=consistency, rtol=rtol,
-            strengthen_during=strengthen_during, local_frame=local_frame, keep=keep,
+        task = TaskOptions(
+            key=uuid.uuid4().hex, search=options, keep=keep,
             all_survivors=on_survivor is not None, quantum_s=quantum_s,
             deadline=_epoch(searching),
         )  # fmt: skip
         results = run.on_cluster(
-            client, log, prefixes, options, slots, quantum_nodes, progress, on_result
+            client, log, prefixes, task, slots, quantum_nodes, progress, on_result
         )
         merge_start = time.perf_counter()
         found = _merge(explorer, root, tally, results, run.best)
@@ -237,8 +229,8 @@ def search_distributed(
         on_unexplored(sorted(run.left))
     finish_start = time.perf_counter()
     solution = finish_search(
-        log, explorer, tally, found, run.unexplored(), run.stop_reason(), consistency,
-        strengthen_limit, progress, start, messages,
+        log, explorer, tally, found, run.unexplored(), run.stop_reason(), options,
+        progress, start, messages,
         lambda *job: _refute_on_cluster(client, slots, *job), rank,
     )  # fmt: skip
     if proof is not None:

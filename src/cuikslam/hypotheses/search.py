@@ -21,6 +21,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -42,8 +43,6 @@ from cuikslam.hypotheses.survivors import (
 from cuikslam.hypotheses.tally import Tally
 from cuikslam.hypotheses.tree import Node, SearchLimit, stop_reason
 from cuikslam.log.records import Log
-from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
-from cuikslam.narrowing.propagation import DEFAULT_RTOL
 from cuikslam.options import SolveOptions
 from cuikslam.outliers import search_outliers_json
 from cuikslam.results.solution import Hypothesis, Solution
@@ -63,6 +62,15 @@ DEFAULT_STRENGTHEN_LIMIT = SolveOptions.strengthen_limit
 best-ranked)."""
 DEFAULT_STRENGTHEN_DURING = SolveOptions.strengthen_during
 """Decisions (the first ones; None: all) whose nodes get ``lp`` before they branch."""
+NOT_SEARCH_OPTIONS = {
+    "certify_limit": "the witness search follows the search in cuikslam.solve",
+    "work_budget": "the search spends the deadline it is given (deadline=Budget.start(...)); "
+    "cuikslam.solve makes it from work_budget",
+    "time_budget": "the search spends the deadline it is given (deadline=Budget.start(...)); "
+    "cuikslam.solve makes it from time_budget",
+}
+"""Options of a solve that the search does not take as keywords, with why (a TypeError
+says so rather than ignore them)."""
 SEARCH_SHARE = 0.7
 """Share of the budget the search itself may use: the rest is left to deciding its
 survivors (bisection, the stronger level), even when the search is cut short."""
@@ -193,7 +201,7 @@ def _branch_places(log: Log, explorer: Explorer, unexplored: list[list[int]]) ->
     ...     '{"type": "observation", "pose": 0, "class": "c", "range": [1, 2], "bearing": [0, 1]}',
     ...     '{"type": "observation", "pose": 0, "class": "c", "range": [3, 4], "bearing": [0, 1]}',
     ... ])
-    >>> explorer = Explorer(build_problem(log), DEFAULT_RTOL, "hull", 0, True)
+    >>> explorer = Explorer(build_problem(log), 1e-3, "hull", 0, True)
     >>> _branch_places(log, explorer, [[0], [0, 1], [1, 0]])
     'line 3 (pose 0), line 2 (pose 0)'
     """
@@ -239,19 +247,14 @@ level ``hull``), and add statistics, timings and messages."""
 
 def solve_unknown(
     log: Log,
+    options: SolveOptions | None = None,
     *,
-    consistency: str = DEFAULT_LEVEL,
-    max_hypotheses: int = DEFAULT_MAX_HYPOTHESES,
-    strengthen_limit: int = DEFAULT_STRENGTHEN_LIMIT,
-    strengthen_during: int | None = DEFAULT_STRENGTHEN_DURING,
-    rtol: float = DEFAULT_RTOL,
     progress: Callable[[int, int], None] | None = None,
     deadline: Budget | None = None,
-    max_nodes: int | None = None,
     on_survivor: Callable[[list[str]], None] | None = None,
-    local_frame: bool = True,
     rank: Rank | None = None,
     prove: Callable[[Hypothesis], None] | None = None,
+    **overrides: Any,
 ) -> Solution:
     """Solve a log whose observations may lack landmark ids; return the surviving hypotheses.
 
@@ -259,27 +262,20 @@ def solve_unknown(
     ----------
     log : Log
         The log; observations without ``landmark`` are decided by the search.
-    consistency : str
-        Level applied to the survivors (``auto``, ``hull``, ``lp``, ``lp-split``).
-    max_hypotheses : int
-        Survivors reported in detail (the best-ranked: fewest outliers, fewest landmarks,
-        then smallest boxes). It never limits the search: every survivor is counted.
-    strengthen_limit : int
-        The level is applied to every reported survivor when at most this many are
-        reported, else to the best-ranked.
-    strengthen_during : int or None
-        During the first ``strengthen_during`` decisions (None: all), a node that would
-        branch is narrowed to ``lp`` first (briefly, whatever ``consistency``), so that
-        narrower boxes gate its candidates and refute whole subtrees early
-        (:meth:`.explorer.Explorer.children`).
-    rtol : float
-        Relative shrink below which propagation stops requeueing an operator.
+    options : SolveOptions, optional
+        The options (defaults: ``SolveOptions()``); the search uses ``consistency`` (the
+        level applied to the survivors), ``max_hypotheses`` (survivors reported in detail,
+        the best-ranked: fewest outliers, fewest landmarks, then smallest boxes; it never
+        limits the search, every survivor is counted), ``strengthen_limit``,
+        ``strengthen_during`` (during the first decisions, a node that would branch is
+        narrowed to ``lp`` first, whatever ``consistency``, so that narrower boxes gate
+        its candidates: :meth:`.explorer.Explorer.children`), ``rtol``, ``threads``,
+        ``max_nodes`` (node expansions after which it stops, incomplete) and
+        ``local_frame``. Its budget is ``deadline``.
     progress : callable, optional
         Called with (done, total) as the explored share of the tree grows.
     deadline : Budget, optional
-        :func:`time.perf_counter` value at which the search stops, incomplete.
-    max_nodes : int, optional
-        Node expansions after which the search stops, incomplete.
+        The budget at which the search stops, incomplete (None: no limit).
     on_survivor : callable, optional
         Called with the assignment of every survivor of the search as it is found (a
         landmark per observation, in log order: the log's ids, ``"+k"`` for the k-th
@@ -287,10 +283,6 @@ def solve_unknown(
         ``"outlier"`` for an observation it takes as an outlier). The stronger
         level may still refute some of them afterwards (``statistics['survivors']`` counts
         those left).
-    local_frame : bool
-        Narrow windows of poses up to each decided pose in a frame fixed at one of their
-        poses, where relative geometry is tight although absolute boxes are wide
-        (:mod:`.local`); off only to measure what it prunes.
     rank : callable, optional
         Called with the survivors' report at ``hull`` (a :class:`Solution`) before the
         stronger level: it may order it and put unreported survivors in it (see
@@ -303,6 +295,10 @@ def solve_unknown(
         ``status`` to proven and its ``witness``), as the witness search does. A proven
         leaf is then reported proven whatever the budget leaves for the stages after the
         search (a witness lies in every sound box of its hypothesis).
+    **overrides
+        Fields of :class:`~cuikslam.options.SolveOptions` replacing those of ``options``
+        (``solve_unknown(log, consistency="hull", max_nodes=1000)``); those of the stages
+        after the search (``NOT_SEARCH_OPTIONS``) are refused.
 
     Returns
     -------
@@ -310,18 +306,19 @@ def solve_unknown(
         ``complete`` is False when a budget stopped the search; its messages then name the
         unexplored subtrees and ``statistics['unexplored_subtrees']`` counts them.
     """
+    options = SolveOptions.merged(options, overrides, "solve_unknown", NOT_SEARCH_OPTIONS)
     start = time.perf_counter()
     ensure_round_to_nearest()
-    consistency = resolve_level(consistency, len(log.pose_ids))
     problem = build_problem(log)
-    explorer = Explorer(problem, rtol, consistency, strengthen_during, local_frame)
+    explorer = Explorer.of(problem, options)
     explorer.deadline = deadline
+    max_nodes = options.max_nodes
     messages: list[str] = []
     root = explorer.root()
     tally = Tally(explorer, on_survivor)
     tally.envelope.set_root(root)
     outcome = _Outcome([], [], None)
-    keep = max(1, max_hypotheses)
+    keep = max(1, options.max_hypotheses)
     if root is not None:
         limit = SearchLimit(portion(deadline, SEARCH_SHARE), max_nodes)
         early = dive(explorer, root, SearchLimit(portion(limit.deadline, DIVE_SHARE), max_nodes))
@@ -341,9 +338,8 @@ def solve_unknown(
     for node in outcome.unexplored:  # the truth may lie under any of them
         tally.envelope.add(node)
     solution = finish_search(
-        log, explorer, tally, outcome.survivors, unexplored, outcome.stop_reason,
-        consistency, strengthen_limit, progress, start, messages, rank=rank,
-        reserve=outcome.reserve, unexplored_covered=True,
+        log, explorer, tally, outcome.survivors, unexplored, outcome.stop_reason, options,
+        progress, start, messages, rank=rank, reserve=outcome.reserve, unexplored_covered=True,
     )  # fmt: skip
     if proof is not None:
         keep_proof(solution, proof)
@@ -376,8 +372,7 @@ def finish_search(
     found: list[Node],
     unexplored: list[list[int]],
     stop_reason: str | None,
-    consistency: str,
-    strengthen_limit: int,
+    options: SolveOptions,
     progress: Callable[[int, int], None] | None,
     start: float,
     messages: list[str],
@@ -390,7 +385,8 @@ def finish_search(
     (``rank``, when given), the stronger level in that order, the reported hypotheses,
     the summary, the statistics and the account of a budget stop.
 
-    ``found`` are the best-ranked survivors (nodes of ``explorer``), ``explorer.stats``
+    ``options`` are the search's (its level and ``strengthen_limit`` here), ``found``
+    are the best-ranked survivors (nodes of ``explorer``), ``explorer.stats``
     counts the whole search, ``unexplored`` names the subtrees left by a budget stop
     (``stop_reason``), the next one to explore last; ``refute`` runs the survivors'
     bisections (on a cluster, their share on each worker); ``reserve`` are the next
@@ -400,6 +396,7 @@ def finish_search(
     """
     problem = explorer.problem
     stats = explorer.stats
+    consistency, strengthen_limit = options.consistency, options.strengthen_limit
     complete = stop_reason is None
     if unexplored and not unexplored_covered:
         tally.envelope.cover_root()
@@ -437,7 +434,7 @@ def finish_search(
         ranked.unreported = []  # used
     rtol, deadline = explorer.graph.rtol, explorer.deadline
     labelled = (
-        (lambda h: solve_labelled(log, h.assignment, consistency, rtol, deadline))
+        (lambda h: solve_labelled(log, h.assignment, consistency, rtol, deadline, options.threads))
         if has_labelled_logs(log)
         else None
     )
@@ -505,7 +502,7 @@ def finish_search(
             **ranked.timings,
         },
         log_path=log.path,
-        consistency=level if hypotheses else consistency,
+        consistency=str(level if hypotheses else consistency),
         messages=messages,
         correspondence=correspondence,
         outliers=outliers,

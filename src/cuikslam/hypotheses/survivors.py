@@ -16,6 +16,7 @@ from cuikslam.hypotheses.problem import Problem
 from cuikslam.hypotheses.tally import Tally
 from cuikslam.hypotheses.tree import Node
 from cuikslam.messages import Message
+from cuikslam.options import Level
 from cuikslam.results.association import anonymous_names, partition
 from cuikslam.results.solution import OUTLIER as OUTLIER_MARK
 from cuikslam.results.solution import Hypothesis
@@ -155,7 +156,7 @@ def bisect_with_reserve(
 def strengthen_report(
     explorer: Explorer,
     report: list[Entry],
-    level: str,
+    level: Level,
     limit: int,
     messages: list[str],
     labelled: Callable[[Hypothesis], Hypothesis | None] | None,
@@ -169,8 +170,8 @@ def strengthen_report(
     poses, 4,541 variables instead of 6,645: ``lp`` in 6 s instead of 43 s, the same
     boxes to 1 %). Otherwise it is narrowed as a node of the search. Returns the report,
     the entries refuted, and the level all of them reach."""
-    if level == "hull" or not report:
-        return report, [], level
+    if level is Level.HULL or not report:
+        return report, [], str(level)
     every = len(report) <= limit
     if not every:
         messages.append(
@@ -180,7 +181,7 @@ def strengthen_report(
                 f"one of them only, the first in rank order (to all when at most {limit}; "
                 "raise strengthen_limit); the others' boxes are at least hull-consistent",
                 reported=len(report),
-                level=level,
+                level=str(level),
                 limit=limit,
             )
         )
@@ -209,14 +210,14 @@ def strengthen_report(
         reached.append(better.consistency)
         out.append((better, node))
     short = [v for v in reached if v != level]  # cut short by a deadline, or never narrowed
-    return out, refuted, short[0] if short else level
+    return out, refuted, short[0] if short else str(level)
 
 
 def strengthen_with_reserve(
     explorer: Explorer,
     report: list[Entry],
     reserve: list[Node],
-    level: str,
+    level: Level,
     limit: int,
     messages: list[str],
     labelled: Callable[[Hypothesis], Hypothesis | None] | None,
