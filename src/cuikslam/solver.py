@@ -14,7 +14,7 @@ from functools import partial
 from typing import Any
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.budget import STRENGTHEN_SHARE, Budget, portion
+from cuikslam.budget import SCHEDULE, Budget
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.hypotheses.labelled import (
     has_labelled_logs,
@@ -51,17 +51,6 @@ CERTIFY_MAX_POSES = 2000
 a log with loop-closing odometry polishes its closures and picks its verification's pivots
 on the model's dense Jacobian (frames x parameters: 0.2 GB at 2,000 poses). Within the cap
 the work budget (or, without one, the witness' evaluation limit) bounds the search."""
-SEARCH_SHARE = 0.8
-"""Fraction of the budget the correspondence search (with its survivors' stronger
-level) may use; the witness search gets the rest, and whatever the search did not need."""
-EARLY_PROOF_SHARE = 0.2
-"""Share of the budget the witness search may use on the search's first leaf (its dive's)
-before the exhaustive search goes on: a proven hypothesis early, whatever the search
-reaches later."""
-FIT_SHARE = 0.5
-"""Share of the time left after the search that the least-squares fit of the reported
-hypotheses (their ranking) may use; the stronger level (within ``SEARCH_SHARE``) and the
-witness search get the rest."""
 
 
 _WARM_UP_LOG = [
@@ -163,12 +152,12 @@ def solve(
     ``time_budget`` (seconds) may cap it as well, and the result then records whether the
     clock bound (``statistics["budget_bound"]``). With known
     correspondence the fixpoint of the factors always runs to the end (it takes
-    milliseconds); the stronger level may use ``STRENGTHEN_SHARE`` of the time left, and
-    the witness search the rest. With unknown correspondence the search gets
-    ``SEARCH_SHARE`` of the budget; when it ends, the least-squares fit that ranks its
-    survivors (:func:`~cuikslam.hypotheses.witness.fit_hypotheses`) may use ``FIT_SHARE``
-    of the time left, and the stronger level then narrows them in that order, within the
-    search's share. A stage that runs out
+    milliseconds); the stronger level may use its share of what is left, and the witness
+    search the rest. With unknown correspondence the search gets its share of the budget;
+    when it ends, the least-squares fit that ranks its survivors
+    (:func:`~cuikslam.hypotheses.witness.fit_hypotheses`) may use its share of what is
+    left, and the stronger level then narrows them in that order, within the search's
+    share. The shares are :data:`cuikslam.budget.SCHEDULE`'s. A stage that runs out
     stops soundly and says so: the level actually reached (e.g. ``"lp (budget)"``, see
     :mod:`cuikslam.narrowing.consistency`) in ``Solution.consistency`` and each
     hypothesis' ``consistency``, a hypothesis left ``not refuted`` rather than proven, an
@@ -188,12 +177,12 @@ def solve(
             log,
             options,
             progress=progress,
-            deadline=portion(deadline, SEARCH_SHARE),
+            deadline=SCHEDULE.share(deadline, "search"),
             on_survivor=on_survivor,
             prove=(
                 (
                     lambda h: certify(
-                        log, Solution([h]), deadline=portion(deadline, EARLY_PROOF_SHARE)
+                        log, Solution([h]), deadline=SCHEDULE.share(deadline, "early_proof")
                     )
                 )
                 if options.certify_limit != 0 and n_poses <= CERTIFY_MAX_POSES
@@ -202,7 +191,7 @@ def solve(
             rank=lambda report: fit_hypotheses(
                 log,
                 report,
-                portion(deadline, FIT_SHARE),
+                SCHEDULE.share(deadline, "fit"),
                 known=partial(solve_labelled, log, rtol=options.rtol, threads=options.threads)
                 if has_labelled_logs(log)
                 else None,
@@ -274,7 +263,7 @@ def _solve_known(
         lo, hi = graph.domains()
         result = narrow_with_outliers(
             Arrays.of(graph), lo, hi, outlier_scope(log, graph), consistency, rtol,
-            DEFAULT_ROUNDS, deadline=portion(deadline, STRENGTHEN_SHARE), report=relaxed,
+            DEFAULT_ROUNDS, deadline=SCHEDULE.share(deadline, "strengthen"), report=relaxed,
             threads=options.threads,
         )  # fmt: skip
         report = relaxed.strengthen
@@ -289,7 +278,7 @@ def _solve_known(
     if not result.is_empty and outliers is None:
         strengthened = strengthen(
             Arrays.of(graph), result.lo, result.hi, consistency, rtol, DEFAULT_ROUNDS,
-            progress, deadline=portion(deadline, STRENGTHEN_SHARE), report=report,
+            progress, deadline=SCHEDULE.share(deadline, "strengthen"), report=report,
             threads=options.threads,
         )  # fmt: skip
         result.applications += strengthened.applications

@@ -32,15 +32,14 @@ from typing import Any
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.budget import COSTS, Budget, deadline_after, expired, portion, remaining, spend
+from cuikslam.budget import COSTS, SCHEDULE, Budget, deadline_after, expired, remaining, spend
 from cuikslam.hypotheses.bisection import Bisection, allotment, refute_by_bisection
-from cuikslam.hypotheses.dive import DIVE_SHARE, Dive, dive, keep_proof, prove_leaf
+from cuikslam.hypotheses.dive import Dive, dive, keep_proof, prove_leaf
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.search import (
     NOT_SEARCH_OPTIONS,
-    SEARCH_SHARE,
     Rank,
     _rank_key,
     finish_search,
@@ -199,7 +198,7 @@ def search_distributed(
     tally = Tally(explorer, on_survivor)
     tally.envelope.set_root(root)  # the fallback for unexplored prefixes
     keep = max(1, options.max_hypotheses)
-    searching = portion(deadline, SEARCH_SHARE)  # the rest decides its survivors
+    searching = SCHEDULE.share(deadline, "walk")  # the rest decides its survivors
     run = _Run(explorer, searching, max_nodes, keep)
     found: list[Node] = []
     split_s = merge_s = 0.0
@@ -207,7 +206,7 @@ def search_distributed(
     early = Dive()
     proof = None
     if root is not None:
-        early = dive(explorer, root, SearchLimit(portion(searching, DIVE_SHARE), max_nodes))
+        early = dive(explorer, root, SearchLimit(SCHEDULE.share(searching, "dive"), max_nodes))
         proof = prove_leaf(explorer, early, prove)
         prefixes = run.split(root, SPLIT_PER_SLOT * slots)
         split_s = time.perf_counter() - start

@@ -26,9 +26,9 @@ from typing import Any
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.budget import COSTS, Budget, portion, spend
+from cuikslam.budget import COSTS, SCHEDULE, Budget, spend
 from cuikslam.hypotheses.bisection import refute_by_bisection
-from cuikslam.hypotheses.dive import DIVE_SHARE, Dive, dive, keep_proof, prove_leaf
+from cuikslam.hypotheses.dive import Dive, dive, keep_proof, prove_leaf
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.labelled import has_labelled_logs, solve_labelled
 from cuikslam.hypotheses.problem import build_problem
@@ -71,9 +71,6 @@ NOT_SEARCH_OPTIONS = {
 }
 """Options of a solve that the search does not take as keywords, with why (a TypeError
 says so rather than ignore them)."""
-SEARCH_SHARE = 0.7
-"""Share of the budget the search itself may use: the rest is left to deciding its
-survivors (bisection, the stronger level), even when the search is cut short."""
 MAINTAIN_EVERY = 1024
 """Node expansions between two looks at the shared graph's housekeeping."""
 SHOWN_PLACES = 5
@@ -320,15 +317,15 @@ def solve_unknown(
     outcome = _Outcome([], [], None)
     keep = max(1, options.max_hypotheses)
     if root is not None:
-        limit = SearchLimit(portion(deadline, SEARCH_SHARE), max_nodes)
-        early = dive(explorer, root, SearchLimit(portion(limit.deadline, DIVE_SHARE), max_nodes))
+        limit = SearchLimit(SCHEDULE.share(deadline, "walk"), max_nodes)
+        early = dive(explorer, root, SearchLimit(SCHEDULE.share(limit.deadline, "dive"), max_nodes))
         proof = prove_leaf(explorer, early, prove)
         outcome = explore(explorer, root, limit, keep, tally.add, progress, reserve=keep)
         explorer.expansions.clear()  # what the search did not take back: its memory
         if outcome.stop_reason is not None and not outcome.survivors and not early.finished:
             # nothing found: the stages after the search have nothing to decide, so the
             # dive goes on with what they would have had (less a reserve for its leaf)
-            more = SearchLimit(portion(deadline, SEARCH_SHARE), max_nodes)
+            more = SearchLimit(SCHEDULE.share(deadline, "walk"), max_nodes)
             early = dive(explorer, root, more, early)
             proof = proof or prove_leaf(explorer, early, prove)
         _join_dive(explorer, tally, outcome, early, keep)

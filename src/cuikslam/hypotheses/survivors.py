@@ -8,7 +8,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from cuikslam.budget import expired, portion
+from cuikslam.budget import SCHEDULE, expired
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.outlier_option import OUTLIER
@@ -36,8 +36,6 @@ MAX_UNREPORTED = 1000
 the least-squares fit that may report them instead (:mod:`.witness.fit`)."""
 BEST_ATTEMPTS = 10
 """Beyond ``strengthen_limit`` survivors, the best-ranked are tried until one is not refuted."""
-BISECTION_SHARE = 0.5
-"""Share of the search's budget left that bisection may use on the survivors."""
 BISECTION_PARTS = 512
 """Parts each survivor's bisection may narrow at most."""
 BISECTION_TOTAL_PARTS = 32_768
@@ -106,13 +104,13 @@ def bisect_survivors(
     explorer: Explorer, survivors: list[Node], limit: int, refute: Refute = refute_by_bisection
 ) -> list[Node]:
     """The survivors that bisection does not prove impossible (:mod:`.bisection`), when
-    there are 2 to ``limit`` of them; it may use ``BISECTION_SHARE`` of the budget left
-    and ``BISECTION_PARTS`` parts per survivor, ``BISECTION_TOTAL_PARTS`` in all, or
+    there are 2 to ``limit`` of them; it may use the schedule's ``bisection`` share of the
+    budget left and ``BISECTION_PARTS`` parts per survivor, ``BISECTION_TOTAL_PARTS`` in all, or
     without a budget ``BISECTION_PARTS_PER_NODE`` per node created by the search (at least
     ``BISECTION_MIN_PARTS``). ``refute`` runs them."""
     if len(survivors) < 2 or len(survivors) > limit:
         return survivors  # a lone survivor is left to the witness search to prove
-    deadline = portion(explorer.deadline, BISECTION_SHARE)
+    deadline = SCHEDULE.share(explorer.deadline, "bisection")
     bisections = [explorer.bisection(node) for node in survivors]
     total = BISECTION_TOTAL_PARTS
     if deadline is None or deadline.unlimited:
