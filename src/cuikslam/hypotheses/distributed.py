@@ -8,7 +8,7 @@ prefixes from the root, searches their subtrees depth first and returns a small
 boxes, counts, and the prefixes left pending when its work quantum ran out). The client
 expands the top of the tree breadth first into a few prefixes per worker, submits them,
 resubmits pending prefixes (split among idle workers: large subtrees are split again) and
-merges the results; :func:`~.search.finish_search` then does what follows the search,
+merges the results; :func:`~.finish.finish_search` then does what follows the search,
 exactly as in one process. The result's envelope joins the survivors' boxes the workers
 send; the subtrees a budget leaves unexplored (on a worker or never sent) are not
 materialized on the client, so the envelope then falls back to the root's boxes, which hold
@@ -36,14 +36,10 @@ from cuikslam.budget import COSTS, SCHEDULE, Budget, deadline_after, expired, re
 from cuikslam.hypotheses.bisection import Bisection, allotment, refute_by_bisection
 from cuikslam.hypotheses.dive import Dive, dive, keep_proof, prove_leaf
 from cuikslam.hypotheses.explorer import Explorer
+from cuikslam.hypotheses.finish import Rank, finish_search
 from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.problem import build_problem
-from cuikslam.hypotheses.search import (
-    NOT_SEARCH_OPTIONS,
-    Rank,
-    _rank_key,
-    finish_search,
-)
+from cuikslam.hypotheses.search import NOT_SEARCH_OPTIONS, _rank_key
 from cuikslam.hypotheses.subtrees import (
     Material,
     Prefix,
