@@ -120,8 +120,9 @@ def worker(log_path: str, level: str, threads: int | None = None) -> dict:
     of the ``lp`` sweeps; None: as the solver decides, from the load)."""
     from cuikslam.graph.kinematic_graph import KinematicGraph
     from cuikslam.log.reader import read_log_file
-    from cuikslam.narrowing.consistency import StrengthenReport, resolve_level, strengthen
+    from cuikslam.narrowing.consistency import StrengthenReport, strengthen
     from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, Arrays, propagate
+    from cuikslam.options import Level
     from cuikslam.solver import warm_up
 
     warm_up()
@@ -133,7 +134,7 @@ def worker(log_path: str, level: str, threads: int | None = None) -> dict:
     arrays = Arrays.of(graph)
     lo, hi = result.lo.copy(), result.hi.copy()
     report = StrengthenReport()
-    chosen = resolve_level(level, len(graph.pose_ids))
+    chosen = Level.parse(level)
     try:
         from cuikslam.narrowing.parts import default_threads
     except ImportError:  # a baseline from before the parts

@@ -278,3 +278,23 @@ def test_the_repro_log_that_hung_the_lp_level_stops_on_its_work_budget() -> None
     second = solve(log, consistency="lp-split", certify_limit=0, work_budget=2e5)
     assert first.statistics["budget_bound"] == "work"
     assert _without_timings(solution_to_json(first)) == _without_timings(solution_to_json(second))
+
+
+def test_the_schedule_alone_decides_the_shares() -> None:
+    """No module but ``budget.py`` names a share of the budget or cuts one out: each stage
+    asks ``SCHEDULE`` (issue 29)."""
+    import re
+
+    import cuikslam
+    from cuikslam.budget import SCHEDULE
+
+    src = Path(cuikslam.__file__).parent
+    found = [
+        f"{path.relative_to(src)}:{number}: {line.strip()}"
+        for path in sorted(src.rglob("*.py"))
+        if path.name != "budget.py"
+        for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), 1)
+        if re.search(r"\b[A-Z_]*SHARE\s*=|\bportion\(|\bcapped\(|\.share\(\s*[0-9]", line)
+    ]
+    assert found == []
+    assert (SCHEDULE.search, SCHEDULE.walk, SCHEDULE.dive) == (0.8, 0.7, 0.6)

@@ -665,7 +665,7 @@ def test_cli_defaults_match_the_library() -> None:
 def test_an_unknown_level_is_refused_with_the_choices() -> None:
     from cuikslam.options import SolveOptions
 
-    with pytest.raises(ValueError, match="unknown consistency level 'box'; choose one of auto"):
+    with pytest.raises(ValueError, match="level 'box'; choose one of hull, lp, lp-split"):
         SolveOptions(consistency="box")
     with pytest.raises(TypeError, match=r"SolveOptions\.replace\(\) .* 'no_such_option'; the opt"):
         SolveOptions().replace(no_such_option=1)

@@ -15,7 +15,7 @@ from _exact import MP, TWO_PI, mpf
 from cuikslam.graph import KinematicGraph
 from cuikslam.graph.encoding import OBSERVATION, ODOMETRY
 from cuikslam.narrowing import Status, propagate
-from cuikslam.narrowing.consistency import LEVELS, resolve_level
+from cuikslam.narrowing.consistency import LEVELS
 from cuikslam.narrowing.polytope import tighten
 from cuikslam.narrowing.relaxation import relax
 from cuikslam.narrowing.sweeps import WINDOW_OVERLAP, WINDOW_POSES, chain_windows
@@ -245,10 +245,12 @@ def test_lp_reports_progress_window_by_window() -> None:
     assert calls[-1][0] == calls[-1][1]
 
 
-def test_auto_is_lp_at_any_length() -> None:
-    assert resolve_level("auto", 9) == "lp"
-    assert resolve_level("auto", 100_000) == "lp"
-    assert resolve_level("hull", 100_000) == "hull"
+def test_auto_is_another_name_of_lp() -> None:
+    from cuikslam.options import Level, SolveOptions
+
+    assert Level.parse("auto") is Level.LP is Level.AUTO
+    assert SolveOptions(consistency="auto") == SolveOptions()
+    assert LEVELS == ("hull", "lp", "lp-split")
 
 
 @pytest.mark.parametrize("seed", range(3))

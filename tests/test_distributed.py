@@ -24,6 +24,7 @@ import pytest
 
 from cuikslam.hypotheses.search import solve_unknown
 from cuikslam.log.writer import write_log_file
+from cuikslam.options import SolveOptions
 from cuikslam.results.solution import Solution
 from cuikslam.simulate import simulate_random_world
 
@@ -175,8 +176,8 @@ def test_a_node_budget_stop_names_every_unexplored_subtree(client) -> None:
     assert stopped.statistics["branch_points"] <= 60
     assert "INCOMPLETE" in " ".join(stopped.messages)
     options = TaskOptions(
-        key="rest", consistency="hull", rtol=1e-3, strengthen_during=0, local_frame=True,
-        keep=1, all_survivors=True, quantum_s=None, deadline=None,
+        key="rest", search=SolveOptions(consistency="hull", strengthen_during=0), keep=1,
+        all_survivors=True, quantum_s=None, deadline=None,
     )  # fmt: skip
     rest = explore_prefixes(log, prefixes, options, None)
     assert not rest.unexplored

@@ -14,9 +14,9 @@ stops the stage, and :attr:`Meter.bound` records which one did. When the clock b
 result depends on the machine and may differ from run to run; the result says so.
 
 A :class:`Budget` is passed to the stages as their ``deadline`` argument (None: no limit).
-:func:`cuikslam.solver.solve` makes one per solve and hands each stage its share with
-:func:`portion` (the stronger level ``STRENGTHEN_SHARE`` of what hull narrowing left, the
-witness search the rest).
+:func:`cuikslam.solver.solve` makes one per solve; each stage asks :data:`SCHEDULE` (a
+:class:`Schedule`) for its share, and nothing else decides one. The table of
+``docs/concepts/budgets.md`` says which stage gets what, and why.
 
 Examples
 --------
@@ -25,6 +25,8 @@ Examples
 >>> spend(stage, 60)
 >>> expired(stage), expired(budget), budget.meter.spent, budget.meter.bound
 (True, False, 60.0, 'work')
+>>> SCHEDULE.share(Budget.start(work=1000), "search").left
+800.0
 """
 
 from __future__ import annotations
@@ -35,15 +37,19 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
+from typing import Literal, get_args
 
 __all__ = [
     "COSTS",
     "DEFAULT_WORK_BUDGET",
     "ONLINE_WORK_PER_POSE",
+    "SCHEDULE",
     "WORK_PER_POSE",
     "Budget",
     "Meter",
     "OutOfTime",
+    "Schedule",
+    "Stage",
     "blas_single_thread",
     "capped",
     "deadline_after",
@@ -102,9 +108,6 @@ ONLINE_WORK_PER_POSE = 5_000.0
 """Work units an online session (:class:`cuikslam.online.Session`, ``cuikslam follow``)
 may spend narrowing before it gives a finished pose's box, by default: about 5 ms here;
 the rest of the narrowing follows the box (measured in ``docs/online.md``)."""
-STRENGTHEN_SHARE = 0.7
-"""Fraction of the budget left after hull narrowing that the stronger level may use; the
-witness search gets the rest (and whatever the stronger level did not need)."""
 
 
 class OutOfTime(Exception):
@@ -277,6 +280,90 @@ def portion(deadline: Budget | None, fraction: float) -> Budget | None:
     if deadline is None:
         return None
     return deadline.share(fraction)
+
+
+Stage = Literal["strengthen", "search", "walk", "dive", "bisection", "early_proof", "fit"]
+"""The stages of a solve that get a share of the budget (the fields of :class:`Schedule`
+that are fractions)."""
+
+
+@dataclass(frozen=True)
+class Schedule:
+    """The one place that decides how a solve's budget is shared among its stages.
+
+    Each stage asks for its budget with :meth:`share` (a fraction of what is left of the
+    budget it is given, when it starts: what a stage does not spend is left to the
+    stages after it) or, for a branching node's ``lp`` window, :meth:`branch_node`. The
+    values are those the solver has always used; ``docs/concepts/budgets.md`` tabulates
+    them with the reason for each.
+
+    Examples
+    --------
+    >>> budget = Budget.start(work=1000)
+    >>> search = SCHEDULE.share(budget, "search")
+    >>> walk = SCHEDULE.share(search, "walk")
+    >>> search.left, walk.left, SCHEDULE.share(walk, "dive").left
+    (800.0, 560.0, 336.0)
+    >>> SCHEDULE.share(None, "fit") is None, SCHEDULE.pending_parts(512)
+    (True, 64)
+    >>> SCHEDULE.share(budget, "witness")
+    Traceback (most recent call last):
+    ...
+    ValueError: no stage 'witness' in the schedule; the stages are strengthen, search, ...
+    """
+
+    strengthen: float = 0.7
+    """Known correspondence: the stronger level, of what the fixpoint left; the witness
+    search gets the rest (and whatever the level did not need)."""
+    search: float = 0.8
+    """Unknown correspondence: the correspondence search with its survivors' bisection
+    and stronger level, of the solve's budget; the witness search gets the rest."""
+    walk: float = 0.7
+    """The search's walk of the tree (with its dive), of the search's share: the rest
+    decides its survivors (bisection, the stronger level), even when the walk is cut
+    short. A dive that found nothing goes on with this share of the search's share."""
+    dive: float = 0.6
+    """The dive (a leaf early, :mod:`cuikslam.hypotheses.dive`), of the walk's share: the
+    exhaustive walk takes back the dive's expansions, so none of it is wasted."""
+    bisection: float = 0.5
+    """The survivors' bisection, of what the walk left; the stronger level the rest."""
+    early_proof: float = 0.2
+    """The witness search on the dive's leaf while the search goes on, of what is left of
+    the solve's budget when the leaf is found: a proven hypothesis early."""
+    fit: float = 0.5
+    """The least-squares fit that ranks the reported survivors, of what is left of the
+    solve's budget when the search ends."""
+    bisection_pending: int = 8
+    """A bisection keeps at most ``1 / bisection_pending`` of its parts waiting (memory
+    stays bounded; parts, not work units: :meth:`pending_parts`)."""
+    branch_node_work: float = 5.0e5
+    """Work units at most of the ``lp`` level on a branching node's window, within the
+    search's share, and also when the solve has no budget: cut short, the window is
+    still sound, and no one ambiguous node can hold up the search (:meth:`branch_node`;
+    about the second it was given when budgets were seconds)."""
+
+    def share(self, budget: Budget | None, stage: Stage) -> Budget | None:
+        """The budget of ``stage``: its fraction of what is left of ``budget``, on the
+        same meter (None without a budget)."""
+        if stage not in _STAGES:
+            raise ValueError(
+                f"no stage {stage!r} in the schedule; the stages are {', '.join(_STAGES)}"
+            )
+        return portion(budget, getattr(self, stage))
+
+    def branch_node(self, budget: Budget | None) -> Budget:
+        """The budget of the ``lp`` level on one branching node's window: at most
+        ``branch_node_work`` more units within ``budget`` (with none, of its own)."""
+        return capped(budget, self.branch_node_work)
+
+    def pending_parts(self, parts: int) -> int:
+        """The parts a bisection of ``parts`` parts may keep waiting at once."""
+        return parts // self.bisection_pending
+
+
+_STAGES: tuple[str, ...] = get_args(Stage)
+SCHEDULE = Schedule()
+"""The schedule every solve follows."""
 
 
 @contextmanager

@@ -13,7 +13,7 @@ from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
-from cuikslam.options import SolveOptions, check_option_names
+from cuikslam.options import SolveOptions
 
 if TYPE_CHECKING:
     from cuikslam.log.records import Log
@@ -109,7 +109,6 @@ def solve_batch(
     """
     from cuikslam.solver import solve
 
-    check_option_names(overrides, "solve_batch")
-    options = (options or SolveOptions()).replace(**overrides)
+    options = SolveOptions.merged(options, overrides, "solve_batch")
     futures = [client.submit(solve, log, options, pure=False) for log in logs]
     return client.gather(futures)

@@ -1,10 +1,13 @@
 """What a solve may be asked: the consistency levels and every option with its default.
 
-The one source of the solve options: :func:`cuikslam.solver.solve` takes a
-:class:`SolveOptions` (or its fields as keywords), the search
-(:func:`cuikslam.hypotheses.solve_unknown`) takes its defaults from it, and the command
-line builds its choices and defaults from it. Importing this module loads nothing
-compiled, so ``cuikslam --help`` stays fast.
+The one source of the solve options. The command line builds one :class:`SolveOptions`
+from its flags (its choices and defaults come from here) and the object travels whole:
+:func:`cuikslam.solver.solve` hands it to the correspondence search
+(:func:`cuikslam.hypotheses.solve_unknown`, or its cluster twin) and the search to its
+explorer and its workers; the level travels as a :class:`Level`. The public functions
+also take the fields as keywords (``solve(log, consistency="hull")``), turned into an
+object at once (:meth:`SolveOptions.merged`), so a level's name is checked in one place.
+Importing this module loads nothing compiled, so ``cuikslam --help`` stays fast.
 
 Examples
 --------
@@ -14,7 +17,9 @@ Examples
 >>> options.replace(max_hypotheses=5).max_hypotheses
 5
 >>> [str(level) for level in Level]
-['auto', 'hull', 'lp', 'lp-split']
+['hull', 'lp', 'lp-split']
+>>> Level.parse("auto") is Level.LP  # an older name of the default
+True
 """
 
 from __future__ import annotations
@@ -28,20 +33,34 @@ from typing import Any, Literal
 
 from cuikslam.budget import work_budget_for
 
-__all__ = ["Level", "SolveOptions", "check_option_names"]
+__all__ = ["AMBIGUITY_LP_MIN_DECISIONS", "Level", "SolveOptions", "check_option_names"]
+
+AMBIGUITY_LP_MIN_DECISIONS = 64
+"""Searches of fewer decisions do without the ``lp`` level on ambiguous nodes, whatever
+``strengthen_during``: their hull boxes have not grown far and their trees are small (on a
+12-pose world the level cost 8 times the search and refuted nothing more). Used by
+:mod:`cuikslam.hypotheses.explorer`; here so that the command line's help can say it."""
 
 
 class Level(enum.StrEnum):
-    """How hard the boxes are narrowed (a string: ``Level.LP == "lp"``)."""
+    """How hard the boxes are narrowed (a string: ``Level.LP == "lp"``).
 
-    AUTO = "auto"
-    """``lp``, whatever the length of the log."""
+    ``"auto"`` (the default of earlier versions) is accepted as a name of ``lp``, which
+    is the default at any length: see ``docs/concepts/levels.md``.
+    """
+
     HULL = "hull"
     """The fixpoint of the narrowing operators (fastest)."""
     LP = "lp"
     """``hull``, then rounds of the rigorous polytope-hull operator (much tighter)."""
     LP_SPLIT = "lp-split"
     """``lp``, then the widest headings bisected (tighter, and slower than ``lp``)."""
+    AUTO = "lp"
+    """Another name of ``lp`` (``Level.AUTO is Level.LP``), kept for earlier callers."""
+
+    @classmethod
+    def _missing_(cls, value: object) -> Level | None:
+        return cls.LP if value == "auto" else None
 
     @classmethod
     def parse(cls, value: str) -> Level:
@@ -62,7 +81,7 @@ class SolveOptions:
     Attributes
     ----------
     consistency : Level
-        The level applied to the boxes (a level's name is accepted too).
+        The level applied to the boxes (a level's name is accepted too; default ``lp``).
     max_hypotheses : int
         Survivors of the correspondence search reported in detail (the best-ranked); the
         search explores and counts all of them.
@@ -72,7 +91,10 @@ class SolveOptions:
     strengthen_during : int or None
         Nodes of the unknown-correspondence search that would branch are first narrowed to
         level ``lp`` (briefly, see :meth:`cuikslam.hypotheses.explorer.Explorer.children`)
-        during its first ``strengthen_during`` decisions (None: all of them; 0: off).
+        during its first ``strengthen_during`` decisions (None: all of them; 0: off). Only
+        a search of at least :data:`AMBIGUITY_LP_MIN_DECISIONS` (64) decisions does so: a
+        shorter one has narrow boxes and a small tree, where the level cost more than it
+        refuted.
     certify_limit : int or None
         Best-ranked hypotheses that get a witness search (None: every reported one).
     rtol : float
@@ -87,11 +109,19 @@ class SolveOptions:
         When it binds, the result says so, and may differ from run to run.
     threads : int or None
         Threads the ``lp`` sweeps of a long log may use (None: the cores that other
-        processes are not already using, from the CPU affinity and the load average). The
+        processes are not already using, from the CPU affinity and the load average), with
+        known or unknown correspondence (there, the sweeps of the reported hypotheses). The
         boxes are the same for any number.
+    max_nodes : int or None
+        Node expansions after which the correspondence search stops, incomplete (None: no
+        limit but the budget). Unknown correspondence only.
+    local_frame : bool
+        The correspondence search also narrows windows of poses in a frame fixed at one of
+        them (:mod:`cuikslam.hypotheses.local`); off only to measure what that prunes.
+        Unknown correspondence only.
     """
 
-    consistency: Level = Level.AUTO
+    consistency: Level = Level.LP
     max_hypotheses: int = 100
     strengthen_limit: int = 100
     strengthen_during: int | None = None
@@ -100,6 +130,8 @@ class SolveOptions:
     work_budget: float | Literal["auto"] | None = "auto"
     time_budget: float | None = None
     threads: int | None = None
+    max_nodes: int | None = None
+    local_frame: bool = True
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "consistency", Level.parse(self.consistency))
@@ -112,6 +144,45 @@ class SolveOptions:
             raise ValueError(f"time_budget must be >= 0 seconds or None, got {self.time_budget}")
         if self.threads is not None and self.threads < 1:
             raise ValueError(f"threads must be at least 1 (or None), got {self.threads}")
+        if self.max_nodes is not None and self.max_nodes < 0:
+            raise ValueError(f"max_nodes must be >= 0 (or None), got {self.max_nodes}")
+
+    @classmethod
+    def merged(
+        cls,
+        options: SolveOptions | None,
+        overrides: dict[str, Any],
+        caller: str,
+        refused: dict[str, str] | None = None,
+    ) -> SolveOptions:
+        """``options`` (the defaults for None) with the keyword ``overrides`` of a public
+        function's call: the entry point's one conversion.
+
+        Parameters
+        ----------
+        options : SolveOptions or None
+            The options given.
+        overrides : dict
+            Fields given as keywords, replacing those of ``options``.
+        caller : str
+            The function called, named in the errors (e.g. ``"solve"``).
+        refused : dict, optional
+            Fields ``caller`` does not use, each with why (a TypeError names it).
+
+        Examples
+        --------
+        >>> SolveOptions.merged(None, {"consistency": "hull"}, "solve").consistency
+        <Level.HULL: 'hull'>
+        >>> SolveOptions.merged(None, {"work_budget": 1}, "f", {"work_budget": "pass deadline="})
+        Traceback (most recent call last):
+        ...
+        TypeError: f() does not take work_budget: pass deadline=
+        """
+        check_option_names(overrides, caller)
+        for name in overrides:
+            if refused and name in refused:
+                raise TypeError(f"{caller}() does not take {name}: {refused[name]}")
+        return (options or cls()).replace(**overrides) if overrides else options or cls()
 
     def work_for(self, n_poses: int) -> float | None:
         """The work budget of a log of ``n_poses`` poses (``"auto"`` resolved)."""

@@ -14,7 +14,7 @@ from functools import partial
 from typing import Any
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.budget import STRENGTHEN_SHARE, Budget, portion
+from cuikslam.budget import SCHEDULE, Budget
 from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.hypotheses.labelled import (
     has_labelled_logs,
@@ -26,10 +26,10 @@ from cuikslam.hypotheses.witness import certify, fit_hypotheses
 from cuikslam.log.reader import reject_reserved_landmark_id
 from cuikslam.log.records import Log
 from cuikslam.messages import Message
-from cuikslam.narrowing.consistency import StrengthenReport, resolve_level, strengthen
+from cuikslam.narrowing.consistency import StrengthenReport, strengthen
 from cuikslam.narrowing.outliers import RelaxedReport, narrow_with_outliers
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
-from cuikslam.options import SolveOptions, check_option_names
+from cuikslam.options import Level, SolveOptions
 from cuikslam.outliers import (
     certify_without_outliers,
     hypothesis_outlier_messages,
@@ -51,17 +51,6 @@ CERTIFY_MAX_POSES = 2000
 a log with loop-closing odometry polishes its closures and picks its verification's pivots
 on the model's dense Jacobian (frames x parameters: 0.2 GB at 2,000 poses). Within the cap
 the work budget (or, without one, the witness' evaluation limit) bounds the search."""
-SEARCH_SHARE = 0.8
-"""Fraction of the budget the correspondence search (with its survivors' stronger
-level) may use; the witness search gets the rest, and whatever the search did not need."""
-EARLY_PROOF_SHARE = 0.2
-"""Share of the budget the witness search may use on the search's first leaf (its dive's)
-before the exhaustive search goes on: a proven hypothesis early, whatever the search
-reaches later."""
-FIT_SHARE = 0.5
-"""Share of the time left after the search that the least-squares fit of the reported
-hypotheses (their ranking) may use; the stronger level (within ``SEARCH_SHARE``) and the
-witness search get the rest."""
 
 
 _WARM_UP_LOG = [
@@ -147,8 +136,8 @@ def solve(
     **overrides
         Fields of :class:`~cuikslam.options.SolveOptions` (``consistency``,
         ``max_hypotheses``, ``strengthen_limit``, ``strengthen_during``,
-        ``certify_limit``, ``rtol``, ``work_budget``, ``time_budget``) replacing those of
-        ``options``.
+        ``certify_limit``, ``rtol``, ``work_budget``, ``time_budget``, ``threads``,
+        ``max_nodes``, ``local_frame``) replacing those of ``options``.
 
     Returns
     -------
@@ -163,43 +152,37 @@ def solve(
     ``time_budget`` (seconds) may cap it as well, and the result then records whether the
     clock bound (``statistics["budget_bound"]``). With known
     correspondence the fixpoint of the factors always runs to the end (it takes
-    milliseconds); the stronger level may use ``STRENGTHEN_SHARE`` of the time left, and
-    the witness search the rest. With unknown correspondence the search gets
-    ``SEARCH_SHARE`` of the budget; when it ends, the least-squares fit that ranks its
-    survivors (:func:`~cuikslam.hypotheses.witness.fit_hypotheses`) may use ``FIT_SHARE``
-    of the time left, and the stronger level then narrows them in that order, within the
-    search's share. A stage that runs out
+    milliseconds); the stronger level may use its share of what is left, and the witness
+    search the rest. With unknown correspondence the search gets its share of the budget;
+    when it ends, the least-squares fit that ranks its survivors
+    (:func:`~cuikslam.hypotheses.witness.fit_hypotheses`) may use its share of what is
+    left, and the stronger level then narrows them in that order, within the search's
+    share. The shares are :data:`cuikslam.budget.SCHEDULE`'s. A stage that runs out
     stops soundly and says so: the level actually reached (e.g. ``"lp (budget)"``, see
     :mod:`cuikslam.narrowing.consistency`) in ``Solution.consistency`` and each
     hypothesis' ``consistency``, a hypothesis left ``not refuted`` rather than proven, an
     incomplete search, each with a message in ``Solution.messages``.
     """
-    check_option_names(overrides, "solve")
-    options = (options or SolveOptions()).replace(**overrides)
+    options = SolveOptions.merged(options, overrides, "solve")
     reject_reserved_landmark_id(log)  # a log built in code has not met the reader's check
     ensure_round_to_nearest()
     unknown = log.has_unknown_correspondence
-    lp = options.consistency.value != "hull" or (unknown and options.strengthen_during != 0)
+    lp = options.consistency is not Level.HULL or (unknown and options.strengthen_during != 0)
     warm_up_s = warm_up(unknown, lp)
     start = time.perf_counter()
     n_poses = len(log.pose_ids)
     deadline = Budget.start(options.work_for(n_poses), options.time_budget)
-    consistency = resolve_level(options.consistency.value, n_poses)
-    if log.has_unknown_correspondence:
+    if unknown:
         solution = (search or solve_unknown)(
             log,
-            consistency=consistency,
-            max_hypotheses=options.max_hypotheses,
-            strengthen_limit=options.strengthen_limit,
-            strengthen_during=options.strengthen_during,
-            rtol=options.rtol,
+            options,
             progress=progress,
-            deadline=portion(deadline, SEARCH_SHARE),
+            deadline=SCHEDULE.share(deadline, "search"),
             on_survivor=on_survivor,
             prove=(
                 (
                     lambda h: certify(
-                        log, Solution([h]), deadline=portion(deadline, EARLY_PROOF_SHARE)
+                        log, Solution([h]), deadline=SCHEDULE.share(deadline, "early_proof")
                     )
                 )
                 if options.certify_limit != 0 and n_poses <= CERTIFY_MAX_POSES
@@ -208,14 +191,14 @@ def solve(
             rank=lambda report: fit_hypotheses(
                 log,
                 report,
-                portion(deadline, FIT_SHARE),
-                known=partial(solve_labelled, log, rtol=options.rtol)
+                SCHEDULE.share(deadline, "fit"),
+                known=partial(solve_labelled, log, rtol=options.rtol, threads=options.threads)
                 if has_labelled_logs(log)
                 else None,
             ),
         )
     else:
-        solution = _solve_known(log, consistency, options.rtol, progress, deadline, options.threads)
+        solution = _solve_known(log, options, progress, deadline)
     certify_limit = options.certify_limit
     if n_poses > CERTIFY_MAX_POSES and certify_limit != 0 and solution.hypotheses:
         certify_limit = 0  # see CERTIFY_MAX_POSES
@@ -267,24 +250,21 @@ def _record_budget(solution: Solution, budget: Budget) -> None:
 
 
 def _solve_known(
-    log: Log,
-    consistency: str,
-    rtol: float,
-    progress: ProgressCallback | None,
-    deadline: Budget | None,
-    threads: int | None = None,
+    log: Log, options: SolveOptions, progress: ProgressCallback | None, deadline: Budget | None
 ) -> Solution:
     start = time.perf_counter()
+    consistency, rtol = options.consistency, options.rtol
     assignment = [str(o.landmark) for o in log.observations]
     graph = KinematicGraph.from_log(log)
-    report = StrengthenReport(level=consistency)
+    report = StrengthenReport(level=str(consistency))
     outliers = None
     if log.outlier_bounds:
         relaxed = RelaxedReport(strengthen=StrengthenReport(level="hull"))
         lo, hi = graph.domains()
         result = narrow_with_outliers(
             Arrays.of(graph), lo, hi, outlier_scope(log, graph), consistency, rtol,
-            DEFAULT_ROUNDS, deadline=portion(deadline, STRENGTHEN_SHARE), report=relaxed,
+            DEFAULT_ROUNDS, deadline=SCHEDULE.share(deadline, "strengthen"), report=relaxed,
+            threads=options.threads,
         )  # fmt: skip
         report = relaxed.strengthen
         outliers = outliers_to_json(log, relaxed)
@@ -298,8 +278,8 @@ def _solve_known(
     if not result.is_empty and outliers is None:
         strengthened = strengthen(
             Arrays.of(graph), result.lo, result.hi, consistency, rtol, DEFAULT_ROUNDS,
-            progress, deadline=portion(deadline, STRENGTHEN_SHARE), report=report,
-            threads=threads,
+            progress, deadline=SCHEDULE.share(deadline, "strengthen"), report=report,
+            threads=options.threads,
         )  # fmt: skip
         result.applications += strengthened.applications
         result.status = strengthened.status
@@ -333,7 +313,7 @@ def _solve_known(
             statistics=statistics,
             timings={"solve_s": elapsed},
             log_path=log.path,
-            consistency=consistency,
+            consistency=str(consistency),
             messages=messages,
             outliers=outliers,
         )
@@ -349,12 +329,12 @@ def _solve_known(
     )
 
 
-def budget_message(level: str, report: StrengthenReport) -> str:
+def budget_message(level: Level | str, report: StrengthenReport) -> str:
     """The message of a stronger level cut short by its budget.
 
     Parameters
     ----------
-    level : str
+    level : Level or str
         The level asked for.
     report : StrengthenReport
         What :func:`~cuikslam.narrowing.consistency.strengthen` reached.

@@ -20,6 +20,15 @@ WORDING: dict[str, str] = {
     "unreported_survivors": (
         "{survivors} survivors were not kept for the report; raise --max-hypotheses"
     ),
+    "survivors_beyond_report": (
+        "{survivors} hypotheses survived; the {reported} best-ranked are reported (raise "
+        "--max-hypotheses to see more)"
+    ),
+    "reported_survivors_refuted": (
+        "the {refuted} best-ranked survivors were proven impossible after the search; the "
+        "other {others} were not kept for the report (raise --max-hypotheses): the log is "
+        "NOT proven inconsistent"
+    ),
     "strengthen_limit": (
         "{reported} hypotheses are reported: the '{level}' level was applied to one of them "
         "only, the first in rank order (to all when at most {limit}; raise "

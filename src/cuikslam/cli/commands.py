@@ -66,8 +66,7 @@ def cmd_paper(args: argparse.Namespace) -> int:
         figure=args.figure,
         json_path=args.json,
         console=console(),
-        work_budget=args.work_budget,
-        time_budget=args.time_budget,
+        options=SolveOptions(work_budget=args.work_budget, time_budget=args.time_budget),
     )
 
 

@@ -30,7 +30,7 @@ from cuikslam.cli.commands import (
     cmd_solve,
 )
 from cuikslam.errors import InputFileError
-from cuikslam.options import Level, SolveOptions
+from cuikslam.options import AMBIGUITY_LP_MIN_DECISIONS, Level, SolveOptions
 
 __all__ = ["main"]
 
@@ -39,12 +39,13 @@ __all__ = ["main"]
 def _add_solver_options(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--consistency",
-        choices=[level.value for level in Level],
-        default=SolveOptions.consistency.value,
+        type=_level,
+        choices=list(Level),
+        default=SolveOptions.consistency,
         help="how hard to narrow: 'hull' = fixpoint of the narrowing operators (fastest); "
-        "'lp' = plus rounds of the rigorous polytope-hull operator (much tighter); "
-        "'lp-split' = plus bisection of the widest headings (tighter, slower than 'lp'); "
-        "'auto' (default) = 'lp', at any length",
+        "'lp' (default, at any length; 'auto' is an older name of it) = plus rounds of the "
+        "rigorous polytope-hull operator (much tighter); 'lp-split' = plus bisection of the "
+        "widest headings (tighter, slower than 'lp')",
     )
     p.add_argument(
         "--survivors",
@@ -73,7 +74,8 @@ def _add_solver_options(p: argparse.ArgumentParser) -> None:
         type=_non_negative_int,
         default=SolveOptions.strengthen_during,
         help="narrow a search node to level lp before it branches, during the first N "
-        "decisions of the search (default: all of them; 0: off)",
+        "decisions of the search (default: all of them; 0: off); a search of fewer than "
+        f"{AMBIGUITY_LP_MIN_DECISIONS} decisions never does (its tree is small)",
     )
     add_budget_arguments(p)
 
@@ -99,6 +101,14 @@ def add_budget_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument(
         "--time-budget", type=_time_budget, default=None, metavar="SECONDS", help=TIME_HELP
     )
+
+
+def _level(text: str) -> Level:
+    """An argparse type: a consistency level by its name (``auto`` is ``lp``)."""
+    try:
+        return Level.parse(text)
+    except ValueError as err:
+        raise argparse.ArgumentTypeError(str(err)) from None
 
 
 def _work_budget(text: str) -> float | str | None:
@@ -169,8 +179,8 @@ def build_parser() -> argparse.ArgumentParser:
         type=_positive_int,
         metavar="N",
         default=SolveOptions.threads,
-        help="threads of the lp sweeps on a long log (default: the cores not already busy, "
-        "from the load average); the boxes are the same for any N",
+        help="threads of the lp sweeps on a long log, with or without landmark ids (default: "
+        "the cores not already busy, from the load average); the boxes are the same for any N",
     )
     p.add_argument("--truth", help="ground-truth JSON: report whether every box contains it")
     p.add_argument("-q", "--quiet", action="store_true", help="print no table")

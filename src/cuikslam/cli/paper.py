@@ -11,6 +11,7 @@ from cuikslam.cli._common import check_figure_path, check_output_path, write_out
 from cuikslam.cli._messages import worded
 from cuikslam.cli.figure_job import start_figure
 from cuikslam.cli.warm_up import note_compiling
+from cuikslam.options import SolveOptions
 from cuikslam.results.association import truth_verdict
 from cuikslam.results.io import write_result_file
 from cuikslam.results.solution import PROVEN, Solution
@@ -99,15 +100,13 @@ def run_paper(
     figure: str | None,
     json_path: str | None,
     console: Console,
-    work_budget: float | str | None = "auto",
-    time_budget: float | None = None,
+    options: SolveOptions | None = None,
 ) -> int:
     """Simulate the seed's experiment, solve it with and without landmark ids, report, and
     draw both in one figure (the known-correspondence solve beside each survivor).
 
-    ``work_budget`` (work units, ``"auto"`` or None) and ``time_budget`` (an optional cap
-    in seconds) bound each of the two solves (see :class:`~cuikslam.options.SolveOptions`)."""
-    budgets = {"work_budget": work_budget, "time_budget": time_budget}
+    ``options`` (the command line's: its ``work_budget`` and ``time_budget``) are those of
+    each of the two solves (see :class:`~cuikslam.options.SolveOptions`)."""
     if json_path:
         check_output_path(json_path)
     if figure:
@@ -116,12 +115,12 @@ def run_paper(
     # Without landmark ids first: the figure draws its survivors while the known part is
     # solved, then only the known panel (cli/figure_job.py). Reported in the usual order.
     unknown_log, unknown_truth = simulate_paper(seed=seed, unknown=True)
-    unknown = solve(unknown_log, **budgets)
+    unknown = solve(unknown_log, options)
     note_compiling(unknown.timings)
     if drawing is not None:
         drawing.send_unknown(unknown, unknown_truth, [o.pose for o in unknown_log.observations])
     log, truth = simulate_paper(seed=seed)
-    solution = solve(log, **budgets)
+    solution = solve(log, options)
     if solution.refuted:  # cannot happen with a correct solver: the simulated log is consistent
         if drawing is not None:
             drawing.cancel()

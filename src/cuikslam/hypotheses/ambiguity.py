@@ -6,7 +6,8 @@ decisions. The ``lp`` level (:mod:`cuikslam.narrowing.consistency`) keeps them f
 tighter, but on a whole long graph it costs seconds. Before a node branches, the level is
 applied to the subgraph of the last ``WINDOW_POSES`` poses up to its decision's pose (their
 odometry, observations and negative information, in the global frame, started from the
-node's bounds), within ``WORK`` units: dropping the other constraints is sound, so the
+node's bounds), within the schedule's ``branch_node_work`` units
+(:meth:`cuikslam.budget.Schedule.branch_node`): dropping the other constraints is sound, so the
 narrowed bounds hold for the whole hypothesis, and an empty window refutes it. The node's
 children are then made from the tighter box (:meth:`.explorer.Explorer.children`).
 """
@@ -15,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cuikslam.budget import Budget, capped
+from cuikslam.budget import SCHEDULE, Budget
 from cuikslam.hypotheses._shared import Overlay, SharedGraph, linked
 from cuikslam.hypotheses.local import pose_windows, window_rows
 from cuikslam.narrowing.consistency import StrengthenReport, strengthen
@@ -25,9 +26,6 @@ __all__ = ["AmbiguityLp"]
 
 WINDOW_POSES = 60
 """Poses of the window: its decision's pose and those reached just before it."""
-WORK = 5.0e5
-"""Work units the level may spend on one window (cut short, it is still sound, only
-weaker): about the second it was given when budgets were seconds."""
 
 
 class AmbiguityLp:
@@ -46,8 +44,9 @@ class AmbiguityLp:
         self, graph: SharedGraph, overlay: Overlay, pose: int, deadline: Budget | None
     ) -> tuple[Overlay | None, int]:
         """The branch of ``overlay`` with the window ending at ``pose`` narrowed to ``lp``
-        (within ``WORK`` and ``deadline``); None when that proves it empty. Also returns
-        the operator applications of the level's propagations."""
+        (within its share of ``deadline``: :meth:`~cuikslam.budget.Schedule.branch_node`);
+        None when that proves it empty. Also returns the operator applications of the
+        level's propagations."""
         local, variables, _ = window_rows(
             self._window[pose], graph.rows, graph.kinds, graph.in_base, overlay.rows,
             graph.head, graph.entry_factor, graph.entry_next, self._in_window,
@@ -60,7 +59,7 @@ class AmbiguityLp:
         lo, hi = graph.values(overlay, variables)
         result = strengthen(
             linked(local, len(variables)), lo, hi, "lp", self.rtol,
-            DEFAULT_ROUNDS, deadline=capped(deadline, WORK),
+            DEFAULT_ROUNDS, deadline=SCHEDULE.branch_node(deadline),
             report=StrengthenReport(),
         )  # fmt: skip
         if result.is_empty:

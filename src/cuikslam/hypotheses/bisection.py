@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cuikslam.budget import COSTS, Budget, expired, spend
+from cuikslam.budget import COSTS, SCHEDULE, Budget, expired, spend
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, DEFAULT_RTOL, Arrays, narrow
 
 __all__ = ["Bisection"]
@@ -30,13 +30,12 @@ HEADING_SCALE = 10.0
 error moves what a pose sees 10 m away by about this much per radian)."""
 APPLICATIONS_PER_PART = 200_000
 """Work budget of one part's narrowing (stopping early is sound, only weaker)."""
-PENDING_SHARE = 8
-"""A bisection keeps at most ``1 / PENDING_SHARE`` of its part budget waiting (at least
-``MIN_PENDING``); beyond, it gives up: the hypothesis is not refuted (sound), its deepest
-part is kept for the witness search. Each waiting part is a copy of every bound: the 100
-survivors of a 200-pose log (Lost in the Woods with a surveyed map), 327 parts each,
-held 1.7 GB before this limit."""
 MIN_PENDING = 16
+"""Parts a bisection may always keep waiting. Beyond that and its share of waiting parts
+(:meth:`~cuikslam.budget.Schedule.pending_parts`: 1/8 of its parts), it gives up: the
+hypothesis is not refuted (sound), its deepest part is kept for the witness search. Each
+waiting part is a copy of every bound: the 100 survivors of a 200-pose log (Lost in the
+Woods with a surveyed map), 327 parts each, held 1.7 GB before this limit."""
 
 
 @dataclass
@@ -68,7 +67,7 @@ class Bisection:
     refuted_parts: int = 0
     narrowed_parts: int = 0
     gave_up: bool = False
-    """Too many parts waited at once (see ``PENDING_SHARE``): the hypothesis stands."""
+    """Too many parts waited at once (see ``MIN_PENDING``): the hypothesis stands."""
 
     def __post_init__(self) -> None:
         self.parts = [(self.lo.copy(), self.hi.copy())]
@@ -178,10 +177,10 @@ def refute_by_bisection(
     (:func:`allotment` gives the share). Each round gives every open bisection its quota
     (8 parts, then twice as many each round), so that the cheap refutations (a part or two)
     come first when the ``deadline`` cuts the rounds short. A bisection whose waiting parts
-    outgrow ``PENDING_SHARE`` of its budget gives up (memory stays bounded).
+    outgrow the schedule's share of its parts gives up (memory stays bounded).
     """
     most = allotment(len(bisections), max_parts, max_total_parts)
-    pending = max(MIN_PENDING, most // PENDING_SHARE)
+    pending = max(MIN_PENDING, SCHEDULE.pending_parts(most))
     quota = FIRST_ROUND_PARTS
     while not expired(deadline):
         open_ = [b for b in bisections if not b.exhausted and b.narrowed_parts < most]

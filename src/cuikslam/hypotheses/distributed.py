@@ -8,7 +8,7 @@ prefixes from the root, searches their subtrees depth first and returns a small
 boxes, counts, and the prefixes left pending when its work quantum ran out). The client
 expands the top of the tree breadth first into a few prefixes per worker, submits them,
 resubmits pending prefixes (split among idle workers: large subtrees are split again) and
-merges the results; :func:`~.search.finish_search` then does what follows the search,
+merges the results; :func:`~.finish.finish_search` then does what follows the search,
 exactly as in one process. The result's envelope joins the survivors' boxes the workers
 send; the subtrees a budget leaves unexplored (on a worker or never sent) are not
 materialized on the client, so the envelope then falls back to the root's boxes, which hold
@@ -32,21 +32,14 @@ from typing import Any
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.budget import COSTS, Budget, deadline_after, expired, portion, remaining, spend
+from cuikslam.budget import COSTS, SCHEDULE, Budget, deadline_after, expired, remaining, spend
 from cuikslam.hypotheses.bisection import Bisection, allotment, refute_by_bisection
-from cuikslam.hypotheses.dive import DIVE_SHARE, Dive, dive, keep_proof, prove_leaf
+from cuikslam.hypotheses.dive import Dive, dive, keep_proof, prove_leaf
 from cuikslam.hypotheses.explorer import Explorer
+from cuikslam.hypotheses.finish import Rank, finish_search
 from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.problem import build_problem
-from cuikslam.hypotheses.search import (
-    DEFAULT_MAX_HYPOTHESES,
-    DEFAULT_STRENGTHEN_DURING,
-    DEFAULT_STRENGTHEN_LIMIT,
-    SEARCH_SHARE,
-    Rank,
-    _rank_key,
-    finish_search,
-)
+from cuikslam.hypotheses.search import NOT_SEARCH_OPTIONS, _rank_key
 from cuikslam.hypotheses.subtrees import (
     Material,
     Prefix,
@@ -58,8 +51,7 @@ from cuikslam.hypotheses.subtrees import (
 from cuikslam.hypotheses.tally import Tally
 from cuikslam.hypotheses.tree import Node, SearchLimit, SearchStatistics
 from cuikslam.log.records import Log
-from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
-from cuikslam.narrowing.propagation import DEFAULT_RTOL
+from cuikslam.options import SolveOptions
 from cuikslam.results.solution import Hypothesis, Solution
 
 __all__ = [
@@ -154,24 +146,19 @@ def _refute_task(bisections: list[Bisection], seconds: float | None, each: int) 
 
 def search_distributed(
     log: Log,
+    options: SolveOptions | None = None,
     *,
     client: Any,
-    consistency: str = DEFAULT_LEVEL,
-    max_hypotheses: int = DEFAULT_MAX_HYPOTHESES,
-    strengthen_limit: int = DEFAULT_STRENGTHEN_LIMIT,
-    strengthen_during: int | None = DEFAULT_STRENGTHEN_DURING,
-    rtol: float = DEFAULT_RTOL,
     progress: Callable[[int, int], None] | None = None,
     deadline: Budget | None = None,
-    max_nodes: int | None = None,
     on_survivor: Callable[[list[str]], None] | None = None,
-    local_frame: bool = True,
     quantum_s: float | None = DEFAULT_QUANTUM_S,
     quantum_nodes: int | None = None,
     on_result: Callable[[SubtreeResult], None] | None = None,
     on_unexplored: Callable[[list[Prefix]], None] | None = None,
     rank: Rank | None = None,
     prove: Callable[[Hypothesis], None] | None = None,
+    **overrides: Any,
 ) -> Solution:
     """:func:`~cuikslam.hypotheses.solve_unknown` with its subtrees explored on ``client``'s
     workers (a :class:`distributed.Client`); the same parameters, and:
@@ -196,17 +183,18 @@ def search_distributed(
         ``lost_on_replay`` and ``worker_cpu_s``; ``peak_frontier`` is the largest of
         any task.
     """
+    options = SolveOptions.merged(options, overrides, "search_distributed", NOT_SEARCH_OPTIONS)
+    max_nodes = options.max_nodes
     start = time.perf_counter()
     ensure_round_to_nearest()
-    consistency = resolve_level(consistency, len(log.pose_ids))
-    explorer = Explorer(build_problem(log), rtol, consistency, strengthen_during, local_frame)
+    explorer = Explorer.of(build_problem(log), options)
     explorer.deadline = deadline
     messages: list[str] = []
     root = explorer.root()
     tally = Tally(explorer, on_survivor)
     tally.envelope.set_root(root)  # the fallback for unexplored prefixes
-    keep = max(1, max_hypotheses)
-    searching = portion(deadline, SEARCH_SHARE)  # the rest decides its survivors
+    keep = max(1, options.max_hypotheses)
+    searching = SCHEDULE.share(deadline, "walk")  # the rest decides its survivors
     run = _Run(explorer, searching, max_nodes, keep)
     found: list[Node] = []
     split_s = merge_s = 0.0
@@ -214,18 +202,17 @@ def search_distributed(
     early = Dive()
     proof = None
     if root is not None:
-        early = dive(explorer, root, SearchLimit(portion(searching, DIVE_SHARE), max_nodes))
+        early = dive(explorer, root, SearchLimit(SCHEDULE.share(searching, "dive"), max_nodes))
         proof = prove_leaf(explorer, early, prove)
         prefixes = run.split(root, SPLIT_PER_SLOT * slots)
         split_s = time.perf_counter() - start
-        options = TaskOptions(
-            key=uuid.uuid4().hex, consistency=consistency, rtol=rtol,
-            strengthen_during=strengthen_during, local_frame=local_frame, keep=keep,
+        task = TaskOptions(
+            key=uuid.uuid4().hex, search=options, keep=keep,
             all_survivors=on_survivor is not None, quantum_s=quantum_s,
             deadline=_epoch(searching),
         )  # fmt: skip
         results = run.on_cluster(
-            client, log, prefixes, options, slots, quantum_nodes, progress, on_result
+            client, log, prefixes, task, slots, quantum_nodes, progress, on_result
         )
         merge_start = time.perf_counter()
         found = _merge(explorer, root, tally, results, run.best)
@@ -237,8 +224,8 @@ def search_distributed(
         on_unexplored(sorted(run.left))
     finish_start = time.perf_counter()
     solution = finish_search(
-        log, explorer, tally, found, run.unexplored(), run.stop_reason(), consistency,
-        strengthen_limit, progress, start, messages,
+        log, explorer, tally, found, run.unexplored(), run.stop_reason(), options,
+        progress, start, messages,
         lambda *job: _refute_on_cluster(client, slots, *job), rank,
     )  # fmt: skip
     if proof is not None:

@@ -30,11 +30,8 @@ from cuikslam.hypotheses.survivors import hypothesis_of
 from cuikslam.hypotheses.tree import Node, SearchLimit
 from cuikslam.results.solution import PROVEN, Hypothesis, Solution
 
-__all__ = ["DIVE_SHARE", "MAX_DISCREPANCIES", "Dive", "dive", "keep_proof", "prove_leaf"]
+__all__ = ["MAX_DISCREPANCIES", "Dive", "dive", "keep_proof", "prove_leaf"]
 
-DIVE_SHARE = 0.6
-"""Share of the search's budget the dive may use (what it does not use goes to the
-exhaustive search, which takes back every expansion the dive made: :mod:`.expansions`)."""
 MAX_DISCREPANCIES = 2
 """Departures from the children's order allowed on a path, at most."""
 

@@ -37,6 +37,7 @@ from cuikslam.hypotheses.tree import (
 )
 from cuikslam.narrowing.consistency import StrengthenReport, strengthen
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS
+from cuikslam.options import Level, SolveOptions
 
 __all__ = ["Budget", "Explorer", "Node", "SearchStatistics"]
 
@@ -55,14 +56,17 @@ class Explorer:
         self,
         problem: Problem,
         rtol: float,
-        level: str,
+        level: Level | str,
         during: int | None,
         local: bool = True,
+        threads: int | None = None,
     ) -> None:
         self.problem = problem
         self.stats = SearchStatistics()
         self.graph = SharedGraph(problem.lo, problem.hi, problem.ranked_vars, rtol, DEFAULT_ROUNDS)
-        self.level = level
+        self.level = Level.parse(level)
+        self.threads = threads
+        """Threads of the ``lp`` sweeps of :meth:`strengthen_node` (None: the idle cores)."""
         self.during = math.inf if during is None else during
         """Nodes of the first ``during`` decisions get ``lp`` before they branch (see
         :meth:`children`)."""
@@ -90,6 +94,15 @@ class Explorer:
         self._pose_xs = np.array(sorted(problem.pose_x.values()), dtype=np.int64)
         self.expansions = Expansions()
         """The dive's expansions, for the exhaustive search to take back (:mod:`.expansions`)."""
+
+    @classmethod
+    def of(cls, problem: Problem, options: SolveOptions) -> Explorer:
+        """The explorer of ``problem`` with a solve's ``options`` (its level, ``rtol``,
+        ``strengthen_during``, ``local_frame`` and ``threads``)."""
+        return cls(
+            problem, options.rtol, options.consistency, options.strengthen_during,
+            options.local_frame, options.threads,
+        )  # fmt: skip
 
     # ---------------------------------------------------------------- precomputed
     def _completed_poses(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
@@ -410,16 +423,17 @@ class Explorer:
         return out
 
     # ---------------------------------------------------------------- stronger level
-    def strengthen_node(self, node: Node, level: str) -> Node | None:
+    def strengthen_node(self, node: Node, level: Level) -> Node | None:
         """``node`` narrowed to ``level``; None when that proves it empty."""
-        if level == "hull":
+        if level is Level.HULL:
             return node
         graph = self.graph
         lo, hi, arrays = graph.standalone(node.overlay, canonical=True)
         report = StrengthenReport()
         result = strengthen(
-            arrays, lo, hi, level, graph.rtol, DEFAULT_ROUNDS, deadline=self.deadline, report=report
-        )
+            arrays, lo, hi, level, graph.rtol, DEFAULT_ROUNDS, deadline=self.deadline,
+            report=report, threads=self.threads,
+        )  # fmt: skip
         self.stats.operator_applications += result.applications
         if result.is_empty:
             self.stats.refuted_by_consistency += 1

@@ -23,6 +23,7 @@ from cuikslam.graph.kinematic_graph import KinematicGraph
 from cuikslam.log.records import Log, Observation
 from cuikslam.narrowing.consistency import StrengthenReport, strengthen
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
+from cuikslam.options import Level
 from cuikslam.outliers import log_without_observations
 from cuikslam.results.solution import OUTLIER, Hypothesis
 
@@ -76,13 +77,15 @@ def labelled_log(log: Log, assignment: list[str]) -> Log:
 def solve_labelled(
     log: Log,
     assignment: list[str],
-    level: str = "hull",
+    level: Level | str = Level.HULL,
     rtol: float = 1e-3,
     deadline: Budget | None = None,
+    threads: int | None = None,
 ) -> Hypothesis | None:
     """The boxes of the hypothesis ``assignment`` of ``log``, narrowed to ``level`` on its
-    labelled log (:func:`labelled_log`) until ``deadline``; None when they contract to
-    empty (a proof that it is impossible).
+    labelled log (:func:`labelled_log`) until ``deadline`` (the ``lp`` sweeps on
+    ``threads``, see :func:`~cuikslam.narrowing.consistency.strengthen`); None when they
+    contract to empty (a proof that it is impossible).
 
     Examples
     --------
@@ -102,7 +105,15 @@ def solve_labelled(
     lo, hi = result.lo, result.hi
     report = StrengthenReport(level=level)
     if strengthen(
-        Arrays.of(graph), lo, hi, level, rtol, DEFAULT_ROUNDS, deadline=deadline, report=report
+        Arrays.of(graph),
+        lo,
+        hi,
+        level,
+        rtol,
+        DEFAULT_ROUNDS,
+        deadline=deadline,
+        report=report,
+        threads=threads,
     ).is_empty:
         return None
     return hypothesis_from_graph(graph, lo, hi, assignment, report.level)

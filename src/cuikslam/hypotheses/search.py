@@ -13,41 +13,30 @@ that is a proof, so the true correspondence is never lost. Leaves are the surviv
 The tree is explored depth first, so memory holds one path and its pending siblings, not
 every live hypothesis; a time or node budget stops the search with the exact list of the
 subtrees left unexplored (each named by the decisions of its root). Expanding one node is
-:class:`~.explorer.Explorer`'s; this module walks the tree and decides its survivors.
+:class:`~.explorer.Explorer`'s; this module walks the tree, and :mod:`.finish` decides its
+survivors and writes the report.
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
-from cuikslam.budget import COSTS, Budget, portion, spend
-from cuikslam.hypotheses.bisection import refute_by_bisection
-from cuikslam.hypotheses.dive import DIVE_SHARE, Dive, dive, keep_proof, prove_leaf
+from cuikslam.budget import COSTS, SCHEDULE, Budget, spend
+from cuikslam.hypotheses.dive import Dive, dive, keep_proof, prove_leaf
 from cuikslam.hypotheses.explorer import Explorer
-from cuikslam.hypotheses.labelled import has_labelled_logs, solve_labelled
+from cuikslam.hypotheses.finish import Rank, finish_search
 from cuikslam.hypotheses.problem import build_problem
-from cuikslam.hypotheses.survivors import (
-    Entry,
-    Refute,
-    bisect_with_reserve,
-    hypothesis_of,
-    strengthen_with_reserve,
-    unreported,
-)
 from cuikslam.hypotheses.tally import Tally
 from cuikslam.hypotheses.tree import Node, SearchLimit, stop_reason
 from cuikslam.log.records import Log
-from cuikslam.narrowing.consistency import DEFAULT_LEVEL, resolve_level
-from cuikslam.narrowing.propagation import DEFAULT_RTOL
 from cuikslam.options import SolveOptions
-from cuikslam.outliers import search_outliers_json
 from cuikslam.results.solution import Hypothesis, Solution
-from cuikslam.results.summary import describe, summarize, summary_to_json
 
 __all__ = [
     "DEFAULT_MAX_HYPOTHESES",
@@ -63,14 +52,17 @@ DEFAULT_STRENGTHEN_LIMIT = SolveOptions.strengthen_limit
 best-ranked)."""
 DEFAULT_STRENGTHEN_DURING = SolveOptions.strengthen_during
 """Decisions (the first ones; None: all) whose nodes get ``lp`` before they branch."""
-SEARCH_SHARE = 0.7
-"""Share of the budget the search itself may use: the rest is left to deciding its
-survivors (bisection, the stronger level), even when the search is cut short."""
+NOT_SEARCH_OPTIONS = {
+    "certify_limit": "the witness search follows the search in cuikslam.solve",
+    "work_budget": "the search spends the deadline it is given (deadline=Budget.start(...)); "
+    "cuikslam.solve makes it from work_budget",
+    "time_budget": "the search spends the deadline it is given (deadline=Budget.start(...)); "
+    "cuikslam.solve makes it from time_budget",
+}
+"""Options of a solve that the search does not take as keywords, with why (a TypeError
+says so rather than ignore them)."""
 MAINTAIN_EVERY = 1024
 """Node expansions between two looks at the shared graph's housekeeping."""
-SHOWN_PLACES = 5
-"""Observations named, where unexplored subtrees branch, in the message of a search stopped
-by its budget."""
 
 
 @dataclass
@@ -182,42 +174,6 @@ def _maintain(
     return [new[id(n)] for n in stack], [new[id(n)] for n in survivors]
 
 
-def _branch_places(log: Log, explorer: Explorer, unexplored: list[list[int]]) -> str:
-    """Where the unexplored subtrees branch, for a message: the observation whose other
-    landmarks each would try (its log line, or its place in the log when it was built in
-    code), the next to explore first, each observation once.
-
-    >>> from cuikslam.log import parse_log_lines
-    >>> log = parse_log_lines([
-    ...     '{"type": "prior", "pose": 0, "x": [0, 0], "y": [0, 0], "theta": [0, 0]}',
-    ...     '{"type": "observation", "pose": 0, "class": "c", "range": [1, 2], "bearing": [0, 1]}',
-    ...     '{"type": "observation", "pose": 0, "class": "c", "range": [3, 4], "bearing": [0, 1]}',
-    ... ])
-    >>> explorer = Explorer(build_problem(log), DEFAULT_RTOL, "hull", 0, True)
-    >>> _branch_places(log, explorer, [[0], [0, 1], [1, 0]])
-    'line 3 (pose 0), line 2 (pose 0)'
-    """
-    decisions = explorer.problem.decisions
-    places: list[str] = []
-    for prefix in unexplored[::-1]:
-        if not prefix:
-            place = "the first observation without a landmark id"
-        else:
-            decision = decisions[len(prefix) - 1]
-            record = log.records[decision.record]
-            where = (
-                f"line {record.line}"
-                if record.line
-                else f"the observation of index {decision.position}"
-            )
-            place = f"{where} (pose {decision.pose})"
-        if place not in places:
-            places.append(place)
-        if len(places) == SHOWN_PLACES:
-            break
-    return ", ".join(places)
-
-
 def _rank_key(explorer: Explorer, node: Node) -> tuple[int, int, int, float]:
     """Fewest outliers, fewest landmarks, then fewest unbounded widths, then smallest total
     width."""
@@ -230,28 +186,16 @@ def _best(explorer: Explorer, nodes: list[Node], keep: int) -> list[Node]:
     return sorted(nodes, key=lambda n: _rank_key(explorer, n))[:keep]
 
 
-Rank = Callable[[Solution], object]
-"""Orders the hull-level report before the stronger level narrows it (the least-squares
-fit, :func:`~.witness.fit.fit_hypotheses`): it may reorder ``Solution.hypotheses``, put
-``Solution.unreported`` survivors in place of reported ones (with boxes of their own,
-level ``hull``), and add statistics, timings and messages."""
-
-
 def solve_unknown(
     log: Log,
+    options: SolveOptions | None = None,
     *,
-    consistency: str = DEFAULT_LEVEL,
-    max_hypotheses: int = DEFAULT_MAX_HYPOTHESES,
-    strengthen_limit: int = DEFAULT_STRENGTHEN_LIMIT,
-    strengthen_during: int | None = DEFAULT_STRENGTHEN_DURING,
-    rtol: float = DEFAULT_RTOL,
     progress: Callable[[int, int], None] | None = None,
     deadline: Budget | None = None,
-    max_nodes: int | None = None,
     on_survivor: Callable[[list[str]], None] | None = None,
-    local_frame: bool = True,
     rank: Rank | None = None,
     prove: Callable[[Hypothesis], None] | None = None,
+    **overrides: Any,
 ) -> Solution:
     """Solve a log whose observations may lack landmark ids; return the surviving hypotheses.
 
@@ -259,27 +203,20 @@ def solve_unknown(
     ----------
     log : Log
         The log; observations without ``landmark`` are decided by the search.
-    consistency : str
-        Level applied to the survivors (``auto``, ``hull``, ``lp``, ``lp-split``).
-    max_hypotheses : int
-        Survivors reported in detail (the best-ranked: fewest outliers, fewest landmarks,
-        then smallest boxes). It never limits the search: every survivor is counted.
-    strengthen_limit : int
-        The level is applied to every reported survivor when at most this many are
-        reported, else to the best-ranked.
-    strengthen_during : int or None
-        During the first ``strengthen_during`` decisions (None: all), a node that would
-        branch is narrowed to ``lp`` first (briefly, whatever ``consistency``), so that
-        narrower boxes gate its candidates and refute whole subtrees early
-        (:meth:`.explorer.Explorer.children`).
-    rtol : float
-        Relative shrink below which propagation stops requeueing an operator.
+    options : SolveOptions, optional
+        The options (defaults: ``SolveOptions()``); the search uses ``consistency`` (the
+        level applied to the survivors), ``max_hypotheses`` (survivors reported in detail,
+        the best-ranked: fewest outliers, fewest landmarks, then smallest boxes; it never
+        limits the search, every survivor is counted), ``strengthen_limit``,
+        ``strengthen_during`` (during the first decisions, a node that would branch is
+        narrowed to ``lp`` first, whatever ``consistency``, so that narrower boxes gate
+        its candidates: :meth:`.explorer.Explorer.children`), ``rtol``, ``threads``,
+        ``max_nodes`` (node expansions after which it stops, incomplete) and
+        ``local_frame``. Its budget is ``deadline``.
     progress : callable, optional
         Called with (done, total) as the explored share of the tree grows.
     deadline : Budget, optional
-        :func:`time.perf_counter` value at which the search stops, incomplete.
-    max_nodes : int, optional
-        Node expansions after which the search stops, incomplete.
+        The budget at which the search stops, incomplete (None: no limit).
     on_survivor : callable, optional
         Called with the assignment of every survivor of the search as it is found (a
         landmark per observation, in log order: the log's ids, ``"+k"`` for the k-th
@@ -287,10 +224,6 @@ def solve_unknown(
         ``"outlier"`` for an observation it takes as an outlier). The stronger
         level may still refute some of them afterwards (``statistics['survivors']`` counts
         those left).
-    local_frame : bool
-        Narrow windows of poses up to each decided pose in a frame fixed at one of their
-        poses, where relative geometry is tight although absolute boxes are wide
-        (:mod:`.local`); off only to measure what it prunes.
     rank : callable, optional
         Called with the survivors' report at ``hull`` (a :class:`Solution`) before the
         stronger level: it may order it and put unreported survivors in it (see
@@ -303,6 +236,10 @@ def solve_unknown(
         ``status`` to proven and its ``witness``), as the witness search does. A proven
         leaf is then reported proven whatever the budget leaves for the stages after the
         search (a witness lies in every sound box of its hypothesis).
+    **overrides
+        Fields of :class:`~cuikslam.options.SolveOptions` replacing those of ``options``
+        (``solve_unknown(log, consistency="hull", max_nodes=1000)``); those of the stages
+        after the search (``NOT_SEARCH_OPTIONS``) are refused.
 
     Returns
     -------
@@ -310,28 +247,29 @@ def solve_unknown(
         ``complete`` is False when a budget stopped the search; its messages then name the
         unexplored subtrees and ``statistics['unexplored_subtrees']`` counts them.
     """
+    options = SolveOptions.merged(options, overrides, "solve_unknown", NOT_SEARCH_OPTIONS)
     start = time.perf_counter()
     ensure_round_to_nearest()
-    consistency = resolve_level(consistency, len(log.pose_ids))
     problem = build_problem(log)
-    explorer = Explorer(problem, rtol, consistency, strengthen_during, local_frame)
+    explorer = Explorer.of(problem, options)
     explorer.deadline = deadline
+    max_nodes = options.max_nodes
     messages: list[str] = []
     root = explorer.root()
     tally = Tally(explorer, on_survivor)
     tally.envelope.set_root(root)
     outcome = _Outcome([], [], None)
-    keep = max(1, max_hypotheses)
+    keep = max(1, options.max_hypotheses)
     if root is not None:
-        limit = SearchLimit(portion(deadline, SEARCH_SHARE), max_nodes)
-        early = dive(explorer, root, SearchLimit(portion(limit.deadline, DIVE_SHARE), max_nodes))
+        limit = SearchLimit(SCHEDULE.share(deadline, "walk"), max_nodes)
+        early = dive(explorer, root, SearchLimit(SCHEDULE.share(limit.deadline, "dive"), max_nodes))
         proof = prove_leaf(explorer, early, prove)
         outcome = explore(explorer, root, limit, keep, tally.add, progress, reserve=keep)
         explorer.expansions.clear()  # what the search did not take back: its memory
         if outcome.stop_reason is not None and not outcome.survivors and not early.finished:
             # nothing found: the stages after the search have nothing to decide, so the
             # dive goes on with what they would have had (less a reserve for its leaf)
-            more = SearchLimit(portion(deadline, SEARCH_SHARE), max_nodes)
+            more = SearchLimit(SCHEDULE.share(deadline, "walk"), max_nodes)
             early = dive(explorer, root, more, early)
             proof = proof or prove_leaf(explorer, early, prove)
         _join_dive(explorer, tally, outcome, early, keep)
@@ -341,9 +279,8 @@ def solve_unknown(
     for node in outcome.unexplored:  # the truth may lie under any of them
         tally.envelope.add(node)
     solution = finish_search(
-        log, explorer, tally, outcome.survivors, unexplored, outcome.stop_reason,
-        consistency, strengthen_limit, progress, start, messages, rank=rank,
-        reserve=outcome.reserve, unexplored_covered=True,
+        log, explorer, tally, outcome.survivors, unexplored, outcome.stop_reason, options,
+        progress, start, messages, rank=rank, reserve=outcome.reserve, unexplored_covered=True,
     )  # fmt: skip
     if proof is not None:
         keep_proof(solution, proof)
@@ -367,148 +304,3 @@ def _join_dive(explorer: Explorer, tally: Tally, outcome: _Outcome, early: Dive,
     stats.dive_leaf_added = 1
     ranked = _best(explorer, [*outcome.survivors, *outcome.reserve, leaf], 2 * keep)
     outcome.survivors, outcome.reserve = ranked[:keep], ranked[keep:]
-
-
-def finish_search(
-    log: Log,
-    explorer: Explorer,
-    tally: Tally,
-    found: list[Node],
-    unexplored: list[list[int]],
-    stop_reason: str | None,
-    consistency: str,
-    strengthen_limit: int,
-    progress: Callable[[int, int], None] | None,
-    start: float,
-    messages: list[str],
-    refute: Refute = refute_by_bisection,
-    rank: Rank | None = None,
-    reserve: list[Node] | None = None,
-    unexplored_covered: bool = False,
-) -> Solution:
-    """What follows the search, wherever it ran: the survivors' bisection, their ranking
-    (``rank``, when given), the stronger level in that order, the reported hypotheses,
-    the summary, the statistics and the account of a budget stop.
-
-    ``found`` are the best-ranked survivors (nodes of ``explorer``), ``explorer.stats``
-    counts the whole search, ``unexplored`` names the subtrees left by a budget stop
-    (``stop_reason``), the next one to explore last; ``refute`` runs the survivors'
-    bisections (on a cluster, their share on each worker); ``reserve`` are the next
-    best-ranked survivors, bisected in turn to take the place of those it refutes.
-    ``unexplored_covered`` says the boxes of the ``unexplored`` subtrees' nodes are in
-    ``tally.envelope`` already; else the envelope takes the root's boxes for them.
-    """
-    problem = explorer.problem
-    stats = explorer.stats
-    complete = stop_reason is None
-    if unexplored and not unexplored_covered:
-        tally.envelope.cover_root()
-    if not complete:
-        stats.unexplored_subtrees = len(unexplored)
-        messages.append(
-            f"the search stopped on its {stop_reason} with {len(unexplored):,} subtrees "
-            f"unexplored ({100 * (1 - stats.explored_fraction):.1f}% of the tree): the result "
-            "is INCOMPLETE, and the true hypothesis may be in them; the next ones to explore "
-            "try other landmarks for the observations at "
-            f"{_branch_places(log, explorer, unexplored)}"
-        )
-    as_leaves = stats.refuted_by_bisection
-    survivors, bisected, spare = bisect_with_reserve(
-        explorer, tally, found, reserve or [], strengthen_limit, refute
-    )
-    if stats.refuted_by_bisection:
-        after = stats.refuted_by_bisection - as_leaves
-        words = ("hypothesis", "its", "box"), ("hypotheses", "their", "boxes")
-        what, whose, boxes = words[stats.refuted_by_bisection != 1]
-        messages.append(
-            f"bisection proved {stats.refuted_by_bisection} {what} impossible that narrowing "
-            f"{whose} whole {boxes} left ({as_leaves} as the search reached them, {after} of "
-            f"{bisected} survivors after it): every part of {whose} {boxes} contracts to "
-            "empty"
-        )
-    report: list[Entry] = sorted(
-        ((hypothesis_of(explorer, n), n) for n in survivors), key=lambda r: r[0].rank_key
-    )
-    ranked = Solution([h for h, _ in report], unreported=unreported(tally, problem, report))
-    if rank is not None and (len(report) > 1 or ranked.unreported):
-        node_of = {id(h): n for h, n in report}
-        rank(ranked)
-        report = [(h, node_of.get(id(h))) for h in ranked.hypotheses]
-        ranked.unreported = []  # used
-    rtol, deadline = explorer.graph.rtol, explorer.deadline
-    labelled = (
-        (lambda h: solve_labelled(log, h.assignment, consistency, rtol, deadline))
-        if has_labelled_logs(log)
-        else None
-    )
-    report, refuted, level = strengthen_with_reserve(
-        explorer, report, spare, consistency, strengthen_limit, messages, labelled
-    )
-    for h, node in refuted:  # by the stronger level
-        if node is None:
-            tally.discard_assignment(h.assignment)
-        else:
-            tally.discard(node)
-        stats.survivors -= 1
-    hypotheses = sorted((h for h, _ in report), key=lambda h: h.rank_key)
-    messages.extend(ranked.messages)
-    if stats.survivors > len(found):
-        messages.append(
-            f"{stats.survivors} hypotheses survived; the {len(hypotheses)} best-ranked are "
-            "reported (raise --max-hypotheses to see more)"
-        )
-    correspondence = None
-    if hypotheses or stats.survivors:  # survivors beyond the report still count
-        kept = tally.kept()
-        summary = summarize(kept, set(problem.named), tally.poses())
-        messages.append(describe(summary, stats.survivors, complete, len(kept)))
-        correspondence = {
-            **summary_to_json(summary),
-            "reported": len(hypotheses),
-            "survivors": stats.survivors,
-            "summarised": len(kept),
-            "complete": complete,
-        }
-    if not hypotheses and stats.survivors:
-        messages.append(
-            f"the {len(found)} best-ranked survivors were proven impossible after the search; "
-            f"the other {stats.survivors} were not kept for the report (raise "
-            "--max-hypotheses): the log is NOT proven inconsistent"
-        )
-    elif not hypotheses:
-        messages.append(
-            "every correspondence hypothesis is proven impossible: the log is inconsistent"
-            if complete
-            else "no hypothesis found in the explored part of the search (not a proof)"
-        )
-    stats.operator_applications += explorer.graph.applications
-    statistics = {key: float(v) if isinstance(v, float) else v for key, v in asdict(stats).items()}
-    statistics.update(
-        poses=len(problem.pose_x),
-        observations=problem.n_observations,
-        hypotheses=len(hypotheses),
-        **ranked.statistics,
-    )
-    if progress is not None and complete:
-        progress(1000, 1000)
-    outliers = search_outliers_json(log, problem.named_positions, problem.named_outliers)
-    if outliers is not None:
-        statistics["outliers_proven"] = len(outliers["proven"])
-    return Solution(
-        hypotheses=hypotheses,
-        complete=complete,
-        statistics=statistics,
-        timings={
-            "solve_s": time.perf_counter() - start,
-            "ambiguity_lp_s": explorer.ambiguity_lp_s,
-            **({} if explorer.proven_at is None else {"dive_proven_s": explorer.proven_at - start}),
-            **ranked.timings,
-        },
-        log_path=log.path,
-        consistency=level if hypotheses else consistency,
-        messages=messages,
-        correspondence=correspondence,
-        outliers=outliers,
-        envelope=tally.envelope.boxes(),
-        unreported=ranked.unreported,
-    )

@@ -26,6 +26,7 @@ from cuikslam.hypotheses.search import _rank_key, explore
 from cuikslam.hypotheses.tally import MAX_TALLIED, Tally
 from cuikslam.hypotheses.tree import Node, SearchLimit, SearchStatistics
 from cuikslam.log.records import Log
+from cuikslam.options import SolveOptions
 
 __all__ = [
     "Material",
@@ -57,10 +58,8 @@ class TaskOptions:
 
     key: str
     """Names the search: a worker builds the problem once per key."""
-    consistency: str
-    rtol: float
-    strengthen_during: int | None
-    local_frame: bool
+    search: SolveOptions
+    """The search's options (a worker's explorer is made from them)."""
     keep: int
     """Best-ranked survivors returned."""
     all_survivors: bool
@@ -199,9 +198,7 @@ def explore_prefixes(
     cpu = time.thread_time()
     ensure_round_to_nearest()
     problem = _problem(log, options.key)
-    explorer = Explorer(
-        problem, options.rtol, options.consistency, options.strengthen_during, options.local_frame
-    )
+    explorer = Explorer.of(problem, options.search)
     deadline = _local_deadline(options.deadline)
     explorer.deadline = deadline
     root = explorer.root()

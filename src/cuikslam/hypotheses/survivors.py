@@ -8,7 +8,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from cuikslam.budget import expired, portion
+from cuikslam.budget import SCHEDULE, expired
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.outlier_option import OUTLIER
@@ -16,6 +16,7 @@ from cuikslam.hypotheses.problem import Problem
 from cuikslam.hypotheses.tally import Tally
 from cuikslam.hypotheses.tree import Node
 from cuikslam.messages import Message
+from cuikslam.options import Level
 from cuikslam.results.association import anonymous_names, partition
 from cuikslam.results.solution import OUTLIER as OUTLIER_MARK
 from cuikslam.results.solution import Hypothesis
@@ -35,8 +36,6 @@ MAX_UNREPORTED = 1000
 the least-squares fit that may report them instead (:mod:`.witness.fit`)."""
 BEST_ATTEMPTS = 10
 """Beyond ``strengthen_limit`` survivors, the best-ranked are tried until one is not refuted."""
-BISECTION_SHARE = 0.5
-"""Share of the search's budget left that bisection may use on the survivors."""
 BISECTION_PARTS = 512
 """Parts each survivor's bisection may narrow at most."""
 BISECTION_TOTAL_PARTS = 32_768
@@ -105,13 +104,13 @@ def bisect_survivors(
     explorer: Explorer, survivors: list[Node], limit: int, refute: Refute = refute_by_bisection
 ) -> list[Node]:
     """The survivors that bisection does not prove impossible (:mod:`.bisection`), when
-    there are 2 to ``limit`` of them; it may use ``BISECTION_SHARE`` of the budget left
-    and ``BISECTION_PARTS`` parts per survivor, ``BISECTION_TOTAL_PARTS`` in all, or
+    there are 2 to ``limit`` of them; it may use the schedule's ``bisection`` share of the
+    budget left and ``BISECTION_PARTS`` parts per survivor, ``BISECTION_TOTAL_PARTS`` in all, or
     without a budget ``BISECTION_PARTS_PER_NODE`` per node created by the search (at least
     ``BISECTION_MIN_PARTS``). ``refute`` runs them."""
     if len(survivors) < 2 or len(survivors) > limit:
         return survivors  # a lone survivor is left to the witness search to prove
-    deadline = portion(explorer.deadline, BISECTION_SHARE)
+    deadline = SCHEDULE.share(explorer.deadline, "bisection")
     bisections = [explorer.bisection(node) for node in survivors]
     total = BISECTION_TOTAL_PARTS
     if deadline is None or deadline.unlimited:
@@ -155,7 +154,7 @@ def bisect_with_reserve(
 def strengthen_report(
     explorer: Explorer,
     report: list[Entry],
-    level: str,
+    level: Level,
     limit: int,
     messages: list[str],
     labelled: Callable[[Hypothesis], Hypothesis | None] | None,
@@ -169,8 +168,8 @@ def strengthen_report(
     poses, 4,541 variables instead of 6,645: ``lp`` in 6 s instead of 43 s, the same
     boxes to 1 %). Otherwise it is narrowed as a node of the search. Returns the report,
     the entries refuted, and the level all of them reach."""
-    if level == "hull" or not report:
-        return report, [], level
+    if level is Level.HULL or not report:
+        return report, [], str(level)
     every = len(report) <= limit
     if not every:
         messages.append(
@@ -180,7 +179,7 @@ def strengthen_report(
                 f"one of them only, the first in rank order (to all when at most {limit}; "
                 "raise strengthen_limit); the others' boxes are at least hull-consistent",
                 reported=len(report),
-                level=level,
+                level=str(level),
                 limit=limit,
             )
         )
@@ -209,14 +208,14 @@ def strengthen_report(
         reached.append(better.consistency)
         out.append((better, node))
     short = [v for v in reached if v != level]  # cut short by a deadline, or never narrowed
-    return out, refuted, short[0] if short else level
+    return out, refuted, short[0] if short else str(level)
 
 
 def strengthen_with_reserve(
     explorer: Explorer,
     report: list[Entry],
     reserve: list[Node],
-    level: str,
+    level: Level,
     limit: int,
     messages: list[str],
     labelled: Callable[[Hypothesis], Hypothesis | None] | None,

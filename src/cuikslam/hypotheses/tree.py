@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 from cuikslam.budget import Budget
 from cuikslam.hypotheses._shared import Overlay
+from cuikslam.options import AMBIGUITY_LP_MIN_DECISIONS
 
 __all__ = [
     "AMBIGUITY_LP_GAP",
@@ -18,10 +19,6 @@ __all__ = [
     "stop_reason",
 ]
 
-AMBIGUITY_LP_MIN_DECISIONS = 64
-"""Searches of fewer decisions do without the ``lp`` level on ambiguous nodes: their hull
-boxes have not grown far and their trees are small (on a 12-pose world the level cost
-8 times the search and refuted nothing more)."""
 AMBIGUITY_LP_GAP = 8
 """Decisions after a node narrowed to ``lp`` before another node on its path may be: each
 such node's box serves the next decisions of its whole subtree. The gap doubles after a

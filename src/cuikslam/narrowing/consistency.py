@@ -11,8 +11,8 @@
   simplex from its basis); on long logs the sweeps from the 4th reuse the last LPs'
   multipliers instead of solving LPs (``sweeps.REUSE_FROM``). Correlation-aware, so it removes
   most of the wrapping effect.
-  Its cost grows linearly with the log (every window has a bounded size), so ``auto`` is
-  ``lp`` at any length.
+  Its cost grows linearly with the log (every window has a bounded size), so it is the
+  default at any length (``auto``, an older name of the default, is ``lp``).
 - ``lp-split``: ``lp``, then the widest headings are bisected one after the other; each
   half is narrowed at level ``lp`` and the hull of the halves is kept. The linearisations
   are tighter on half the heading interval. Tighter boxes than ``lp``, for a few times
@@ -67,15 +67,16 @@ __all__ = [
     "DEFAULT_LEVEL",
     "LEVELS",
     "StrengthenReport",
-    "resolve_level",
     "strengthen",
     "warm_up_lp",
 ]
 
-LEVELS = tuple(str(level) for level in Level if level is not Level.AUTO)
-"""The levels :func:`strengthen` runs (:class:`~cuikslam.options.Level` without ``auto``)."""
-DEFAULT_LEVEL = str(SolveOptions.consistency)
-"""``auto``: ``lp``, whatever the length of the log (see :func:`resolve_level`)."""
+LEVELS = tuple(str(level) for level in Level)
+"""The names of the levels :func:`strengthen` runs (:class:`~cuikslam.options.Level`)."""
+DEFAULT_LEVEL = SolveOptions.consistency
+"""``lp``, whatever the length of the log (the sweeps cost about the same per pose on
+short and long logs, ``benchmarks/bench_long_logs.py``: the budget, not the level, bounds
+a long log's run time)."""
 SPLIT_HEADINGS = 2
 """Headings bisected by the ``lp-split`` level (the widest first)."""
 BUDGET_SUFFIX = " (budget)"
@@ -97,26 +98,11 @@ class StrengthenReport:
     """LP counts: solved, optimal, stopped by a limit, retried, skipped at the deadline."""
 
 
-def resolve_level(level: str, n_poses: int) -> str:
-    """The level to run: ``auto`` becomes ``lp`` (whatever ``n_poses``; kept as a parameter
-    so that callers need not change if the choice ever depends on the log again).
-
-    The ``lp`` sweeps cost about the same per pose on short and long logs (see
-    ``benchmarks/bench_long_logs.py``); the time budget of a solve, not the level, is what
-    bounds a long log's run time.
-    """
-    if level == "auto":
-        return "lp"
-    if level not in LEVELS:
-        raise ValueError(f"unknown consistency level {level!r}; choose auto or one of {LEVELS}")
-    return level
-
-
 def strengthen(
     graph: KinematicGraph | Arrays,
     lo: np.ndarray,
     hi: np.ndarray,
-    level: str = "lp",
+    level: Level | str = Level.LP,
     rtol: float = DEFAULT_RTOL,
     max_rounds: int = DEFAULT_ROUNDS,
     progress: Callable[[int, int], None] | None = None,
@@ -138,8 +124,8 @@ def strengthen(
         Bounds of every variable, already at the fixpoint of the factors (e.g. the ``lo``
         and ``hi`` of :func:`~cuikslam.narrowing.propagation.propagate`); narrowed in
         place.
-    level : str
-        One of ``LEVELS`` (``"lp"`` by default).
+    level : Level or str
+        The level (``Level.LP`` by default; its name is accepted too).
     rtol : float
         Relative gain below which propagation stops requeueing a factor.
     max_rounds : int
@@ -177,6 +163,7 @@ def strengthen(
     >>> stronger.lo is fixpoint.lo, stronger.pose_box(1).shape
     (True, (3, 2))
     """
+    level = Level.parse(level)
     if isinstance(graph, KinematicGraph):
         result = _strengthen(
             Arrays.of(graph), lo, hi, level, rtol, max_rounds, progress, deadline, report,
@@ -191,7 +178,7 @@ def _strengthen(
     arrays: Arrays,
     lo: np.ndarray,
     hi: np.ndarray,
-    level: str,
+    level: Level,
     rtol: float,
     max_rounds: int,
     progress: Callable[[int, int], None] | None,
@@ -201,11 +188,9 @@ def _strengthen(
 ) -> Propagation:
     """:func:`strengthen` on the graph's arrays."""
     ensure_round_to_nearest()
-    if level not in LEVELS:
-        raise ValueError(f"unknown consistency level {level!r}; choose one of {', '.join(LEVELS)}")
     report = report if report is not None else StrengthenReport()
     report.level = "hull"
-    if level == "hull":
+    if level is Level.HULL:
         return Propagation(lo, hi, Status.CONSISTENT, 0)
     if expired(deadline):
         report.budget_exhausted = True
@@ -220,7 +205,7 @@ def _strengthen(
         report.level = "lp" + BUDGET_SUFFIX
     if not finished:
         report.budget_exhausted = True
-    if status is Status.INCONSISTENT or level == "lp" or not finished:
+    if status is Status.INCONSISTENT or level is Level.LP or not finished:
         return Propagation(lo, hi, status, applications)
     turning = np.isin(arrays.factors[:, KIND], (ODOMETRY, ROTATION))
     headings = np.unique(arrays.factors[turning][:, [TA, TB]])

@@ -104,6 +104,7 @@ def narrow_with_outliers(
     *,
     deadline: Budget | None = None,
     report: RelaxedReport | None = None,
+    threads: int | None = None,
 ) -> Propagation:
     """Narrow ``lo``/``hi`` in place, sound whenever the declaration of ``scope`` holds.
 
@@ -124,6 +125,9 @@ def narrow_with_outliers(
         :func:`~cuikslam.narrowing.consistency.strengthen`).
     report : RelaxedReport, optional
         Filled in with the proven outliers.
+    threads : int, optional
+        Threads of the stronger level's sweeps (as in
+        :func:`~cuikslam.narrowing.consistency.strengthen`).
 
     Returns
     -------
@@ -157,7 +161,7 @@ def narrow_with_outliers(
             applications += count
         if status is not Status.INCONSISTENT and level != "hull" and not expired(deadline):
             status, count = _strengthen(
-                hard, meet, lo, hi, level, rtol, max_rounds, deadline, report
+                hard, meet, lo, hi, level, rtol, max_rounds, deadline, report, threads
             )
             applications += count
         if status is Status.INCONSISTENT:
@@ -258,11 +262,13 @@ def _strengthen(
     max_rounds: int,
     deadline: Budget | None,
     report: RelaxedReport,
+    threads: int | None = None,
 ) -> tuple[Status, int]:
     """The stronger level on the ordinary factors, then the relaxed fixpoint again."""
     strong = strengthen(
-        hard, lo, hi, level, rtol, max_rounds, deadline=deadline, report=report.strengthen
-    )
+        hard, lo, hi, level, rtol, max_rounds, deadline=deadline, report=report.strengthen,
+        threads=threads,
+    )  # fmt: skip
     if strong.status is Status.INCONSISTENT:
         return strong.status, strong.applications
     status, count = _fixpoint(hard, meet, lo, hi, [], rtol, max_rounds, report)
