@@ -442,10 +442,9 @@ def test_the_sets_of_a_block_are_tried() -> None:
     assert lo[x] <= 5 <= hi[x] and lo[y] <= 2.887 <= hi[y] and hi[x] - lo[x] < 2
 
 
-def test_a_witness_leaves_out_only_proven_outliers() -> None:
-    """Proven outlier: the rest is proven consistent by a witness. Two sightings that
-    disagree with neither proven wrong: no witness can meet both, none is claimed."""
-    log = _log(
+def _one_outlier_log():
+    """At most one outlier, two sightings of the marked post: the second is proven one."""
+    return _log(
         PRIOR,
         '{"type": "outliers", "at_most": 1}',
         MARK,
@@ -453,6 +452,12 @@ def test_a_witness_leaves_out_only_proven_outliers() -> None:
         _sighting(0, (4.8, 5.2)),
         _sighting(1, (9.0, 9.5)),
     )
+
+
+def test_a_witness_leaves_out_only_proven_outliers() -> None:
+    """Proven outlier: the rest is proven consistent by a witness. Two sightings that
+    disagree with neither proven wrong: no witness can meet both, none is claimed."""
+    log = _one_outlier_log()
     solution = solve(log, consistency="hull", work_budget=None)
     assert solution.best.status == "proven consistent"
     assert any("leaves out the 1 proven outlier" in m for m in solution.messages)
@@ -478,14 +483,7 @@ def test_a_witness_leaves_out_only_proven_outliers() -> None:
 
 def test_without_a_witness_search_the_outlier_log_records_zero_counts() -> None:
     """certify_limit=0 with an outliers record: no search, its counts are there and 0."""
-    log = _log(
-        PRIOR,
-        '{"type": "outliers", "at_most": 1}',
-        MARK,
-        '{"type": "odometry", "from": 0, "to": 1, "turn": [-0.01, 0.01], "distance": [1, 1.1]}',
-        _sighting(0, (4.8, 5.2)),
-        _sighting(1, (9.0, 9.5)),
-    )
+    log = _one_outlier_log()
     solution = solve(log, consistency="hull", work_budget=None, certify_limit=0)
     assert solution.best.status == "not refuted"
     assert solution.statistics["proven_hypotheses"] == solution.statistics["witness_starts"] == 0
