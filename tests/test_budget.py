@@ -113,6 +113,22 @@ def test_a_wall_clock_cap_that_binds_is_recorded() -> None:
     assert 0 < default.statistics["work_spent"] <= default.statistics["work_budget"]
 
 
+def test_a_correspondence_search_gets_more_work_per_pose_by_default() -> None:
+    """Without landmark ids the default budget is ``SEARCH_WORK_PER_POSE`` a pose, with
+    them ``WORK_PER_POSE``; the seed's experiment decides both within it."""
+    from cuikslam.budget import SEARCH_WORK_PER_POSE, WORK_PER_POSE
+
+    assert SEARCH_WORK_PER_POSE > WORK_PER_POSE
+    log, _ = simulate_paper(seed=0, unknown=True)
+    n = len(log.pose_ids)
+    solution = solve(log, consistency="lp")
+    assert solution.statistics["work_budget"] == work_budget_for(n, search=True)
+    assert work_budget_for(n, search=True) - work_budget_for(n) == pytest.approx(
+        (SEARCH_WORK_PER_POSE - WORK_PER_POSE) * n, rel=1e-15
+    )
+    assert [h.status for h in solution.hypotheses] == ["proven consistent"] * 2
+
+
 def test_blas_single_thread_limits_scipys_own_blas() -> None:
     """scipy ships its own OpenBLAS, loaded on first use: loaded inside the block (as the
     witness search loads scipy.optimize), it must run on one thread too."""

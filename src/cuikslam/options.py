@@ -102,8 +102,8 @@ class SolveOptions:
     work_budget : float, "auto" or None
         Work units the whole solve may spend (see :mod:`cuikslam.budget`): the same log,
         options and version then give the same result on any machine and at any load.
-        ``"auto"``: :func:`~cuikslam.budget.work_budget_for` the log's poses; None: no
-        limit.
+        ``"auto"``: :func:`~cuikslam.budget.work_budget_for` the log's poses (more per
+        pose when a correspondence search runs); None: no limit.
     time_budget : float or None
         An optional wall-clock cap, in seconds, on top of the work budget (None: none).
         When it binds, the result says so, and may differ from run to run.
@@ -184,10 +184,11 @@ class SolveOptions:
                 raise TypeError(f"{caller}() does not take {name}: {refused[name]}")
         return (options or cls()).replace(**overrides) if overrides else options or cls()
 
-    def work_for(self, n_poses: int) -> float | None:
-        """The work budget of a log of ``n_poses`` poses (``"auto"`` resolved)."""
+    def work_for(self, n_poses: int, search: bool = False) -> float | None:
+        """The work budget of a log of ``n_poses`` poses (``"auto"`` resolved; ``search``:
+        some of its readings lack their landmark id)."""
         if self.work_budget == "auto":
-            return work_budget_for(n_poses)
+            return work_budget_for(n_poses, search)
         return None if self.work_budget is None else float(self.work_budget)
 
     def replace(self, **changes: Any) -> SolveOptions:

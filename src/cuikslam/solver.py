@@ -171,7 +171,7 @@ def solve(
     warm_up_s = warm_up(unknown, lp)
     start = time.perf_counter()
     n_poses = len(log.pose_ids)
-    deadline = Budget.start(options.work_for(n_poses), options.time_budget)
+    deadline = Budget.start(options.work_for(n_poses, unknown), options.time_budget)
     if unknown:
         solution = (search or solve_unknown)(
             log,

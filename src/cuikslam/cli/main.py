@@ -13,7 +13,7 @@ import sys
 from collections.abc import Sequence
 
 from cuikslam import __version__
-from cuikslam.budget import DEFAULT_WORK_BUDGET, WORK_PER_POSE
+from cuikslam.budget import DEFAULT_WORK_BUDGET, SEARCH_WORK_PER_POSE, WORK_PER_POSE
 from cuikslam.cli._common import (
     EXIT_INPUT,
     EXIT_INTERRUPTED,
@@ -85,7 +85,8 @@ WORK_HELP = (
     "same log and options give the same result on any machine, at any load); a stage that "
     "runs out stops soundly and says so (boxes at a weaker level, a hypothesis left 'not "
     "refuted', an incomplete search); 'none' for no limit; 'auto' (default): "
-    f"{DEFAULT_WORK_BUDGET:.3g} plus {WORK_PER_POSE:.3g} per pose of the log"
+    f"{DEFAULT_WORK_BUDGET:.3g} plus {WORK_PER_POSE:.3g} per pose of the log "
+    f"({SEARCH_WORK_PER_POSE:.3g} when some reading lacks its landmark id)"
 )
 TIME_HELP = (
     "an optional wall-clock cap in seconds on top of the work budget (default: none); when "
