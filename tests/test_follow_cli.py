@@ -45,6 +45,14 @@ def test_one_line_per_pose_in_order_holding_the_truth(world, tmp_path) -> None:
     assert "\r" not in result.stderr  # no status line off a terminal
 
 
+def test_the_lp_level_keeps_the_truth(world, tmp_path) -> None:
+    log, truth, poses = world
+    result = run("follow", log, "--consistency", "lp", "--truth", truth, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert len(lines_of(result.stdout)) == len(poses)
+    assert f"truth: all {len(poses)} boxes with a true pose hold it" in result.stderr
+
+
 def test_standard_input_and_an_output_file(world, tmp_path) -> None:
     log, _, poses = world
     out = tmp_path / "boxes.jsonl"

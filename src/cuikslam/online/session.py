@@ -11,11 +11,16 @@ the compiled propagation goes on from there only through the variables that shri
 (:class:`~.growing.GrowingGraph`). Every box holds the truth whenever every record holds
 its own, as in a batch solve; only the order of the narrowing steps differs, so a box may
 differ from the batch ``hull`` box within the propagation's tolerance (``rtol``).
+
+From the first reading without a landmark id (or an ``outliers`` record) on, the session
+keeps the live correspondence hypotheses instead (:class:`~.hypotheses.LiveHypotheses`),
+updated at each finished pose; a pose's box is then the hull of theirs.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 
 import numpy as np
 
@@ -147,8 +152,7 @@ class Session:
         ------
         InputFileError
             When the record breaks a rule of the log format given the records before it
-            (naming ``path`` and the record's line), or asks for what a session does not
-            do yet.
+            (naming ``path`` and the record's line).
         """
         received = time.perf_counter() if received is None else received
         if self.refuted is not None:
@@ -323,7 +327,7 @@ class Session:
                             graph.landmark_index(landmark), 2, lambda v: v.meet_point(0, x, y)
                         )
 
-    def _meet(self, first: int, n: int, meet) -> None:
+    def _meet(self, first: int, n: int, meet: Callable[[Variables], None]) -> None:
         """Intersect the bounds of variables ``first .. first + n - 1`` as ``meet`` does on
         a :class:`~cuikslam.graph.variables.Variables` of them (headings modulo 2π), and
         wake the factors of those that shrink."""
