@@ -345,14 +345,15 @@ class Session:
             self._touched.append(grown.factors_of(changed))
 
     def _narrow(self, work: float | None = None) -> None:
-        """Narrow from every factor the records since the last call touched, within
-        ``work`` units (None: no limit)."""
+        """Narrow from every factor the records since the last call touched, then from
+        those a work limit deferred before (a finished pose's own records go first),
+        within ``work`` units (None: no limit)."""
         if self.refuted is not None:
             return
         if not (self._touched or len(self._deferred)):
             self._pending_lines = []
             return
-        touched = np.concatenate([self._deferred, *self._touched])
+        touched = np.concatenate([*self._touched, self._deferred])
         self._touched = []
         limit = 2**62 if work is None else max(1, int(work / COSTS["operator"]))
         result = self._grown.narrow(touched, limit)
