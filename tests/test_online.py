@@ -392,6 +392,7 @@ def test_records_are_fed_at_their_recorded_times() -> None:
     report, _, added = paced(work_s=0.0, rate=2.0)
     assert added == [1000.0, 1000.5, 1000.5, 1000.75]
     assert (report.instants, report.late, report.poses) == (3, 0, 3)
+    assert report.lags_s == [0.0, 0.0, 0.0]
 
 
 def test_a_session_slower_than_the_records_is_reported_behind() -> None:
@@ -401,6 +402,7 @@ def test_a_session_slower_than_the_records_is_reported_behind() -> None:
     # third was being added (done at 1001.6)
     assert report.late == 1 and report.worst_late_line == 4
     assert report.worst_late_s == pytest.approx(0.1)
+    assert report.lags_s == pytest.approx([0.0, 0.0, 0.1])
 
 
 def test_pacer_keeps_time_stamps_that_go_back_at_the_latest() -> None:

@@ -142,6 +142,9 @@ class FollowReport:
     """With a rate: how long after it fell due the latest such instant could start."""
     worst_late_line: int = 0
     """With a rate: the line of the record that started that instant."""
+    lags_s: list[float] = field(default_factory=list)
+    """With a rate: for each instant, how long after it fell due its first record was
+    fed (when on time, how late the wait for it woke up)."""
 
     def latency_percentile(self, q: float) -> float:
         """The ``q``-th percentile of the latencies (NaN without poses)."""
@@ -219,6 +222,8 @@ def follow(
                             report.worst_late_s, report.worst_late_line = ready - due, number
                 if due > ready:
                     sleep(due - ready)
+                if new_instant:
+                    report.lags_s.append(max(0.0, clock() - due))
                 received = due
             estimate = session.add(record, received=received)
             give(estimate)
