@@ -133,8 +133,12 @@ class GrowingGraph:
             touched, self.rtol, self.max_rounds, int(max_applications), self._queue,
             self._state, self._memory, self._applied, True,
         )  # fmt: skip
-        left = int(np.argmax(self._queue < 0))  # the factors still queued come first
-        return Narrowing(Status(status), int(applications), self._queue[:left].copy())
+        status = Status(status)
+        if status is Status.BUDGET_EXHAUSTED:  # the factors still queued come first
+            left = self._queue[: int(np.argmax(self._queue < 0))].copy()
+        else:
+            left = self._queue[:0].copy()
+        return Narrowing(status, int(applications), left)
 
     def arrays(self) -> Arrays:
         """The graph as the narrowing functions take it (views, without spare capacity)."""
