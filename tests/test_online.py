@@ -142,14 +142,22 @@ SMALL = {"poses": (4, 8), "landmarks": (2, 5), "max_observations": 14}
 
 
 def check_unknown(world: World, naming: str) -> None:
-    """Each finished pose's box (the hull over the live hypotheses) holds the truth, and
-    the true correspondence is alive at the end."""
+    """Each finished pose's box (the hull over the live hypotheses), when it is given and
+    asked again after every record, holds the truth, and the true correspondence is alive
+    at the end."""
     note(world.notes[0])
     note("\n".join(world.lines(naming)))
     log = world.log(naming)
     assume(log_violations(log, world.truth) == [])
     session = Session()
-    estimates = [e for e in map(session.add, log.records) if e is not None]
+    estimates = []
+    for record in log.records:
+        estimate = session.add(record)
+        if estimate is not None:
+            estimates.append(estimate)
+        assert session.refuted is None, session.refuted
+        for pose in session.finished:  # asked after every record
+            assert pose_misses(session.pose_box(pose), world.truth, pose) == []
     estimates.append(session.finish())
     assert session.refuted is None, session.refuted
     for estimate in estimates:
@@ -185,6 +193,23 @@ def test_the_seeds_experiment_online_keeps_the_batch_survivors() -> None:
     assert online == sorted(partition(h.assignment, set()) for h in batch.hypotheses)
     assert last.hypotheses == batch.statistics["survivors"] == 2 and max(counts) <= 2
     assert correspondence(truth.assignment, ()) in {correspondence(a, ()) for a in online}
+
+
+def test_poses_reached_before_the_first_reading_without_an_id_keep_their_boxes() -> None:
+    """Until the next pose is finished, the live hypotheses have no boxes of their own:
+    a pose's box is then that of the records before the reading."""
+    session = Session()
+    session.add(PosePrior(0, (0, 0), (0, 0), (0, 0)))
+    assert session.add(Odometry(0, 1, (0, 0), (1, 1.5))).pose == 0
+    before = session.pose_box(1)
+    session.add(Observation(1, "post", (1, 2), (-0.1, 0.1)))  # no id
+    assert session.pose_box(0).tolist() == [[0, 0], [0, 0], [0, 0]]
+    assert session.pose_box(1).tolist() == before.tolist()
+    assert session.hypotheses == 1
+    assert session.add(Odometry(1, 2, (0, 0), (1, 1))).pose == 1  # the first update
+    assert session.pose_box(1)[0] == pytest.approx([1, 1.5]) and session.hypotheses == 1
+    with pytest.raises(KeyError):
+        session.pose_box(2)  # reached after the update
 
 
 # --- when poses are finished ---------------------------------------------------------------

@@ -216,7 +216,7 @@ class Session:
         """Correspondence hypotheses alive: 1 with known correspondence (0 once refuted)."""
         if self.refuted is not None:
             return 0
-        return 1 if self._live is None else len(self._live)
+        return 1 if self._live is None or self._live.explorer is None else len(self._live)
 
     def assignments(self) -> list[list[str]]:
         """The landmark of each observation so far (log order) in each live hypothesis
@@ -231,17 +231,28 @@ class Session:
     def pose_box(self, pose: int) -> np.ndarray:
         """The (3, 2) box of any pose reached so far, every record added so far narrowed in.
 
+        With unknown correspondence, the hull of its boxes over the live hypotheses as of
+        the last finished pose (the records since come in when the next pose is
+        finished); before the first pose finished after the first reading without an id,
+        its box from the records before that reading.
+
         Raises
         ------
         KeyError
-            For a pose not reached yet.
+            For a pose not reached yet (with unknown correspondence: not reached when the
+            last pose was finished).
         ValueError
             Once the records are proven inconsistent (:attr:`refuted`).
         """
         self.settle()
         self._raise_if_refuted()
-        if self._live is not None:
+        if self._live is not None and self._live.explorer is not None:
             return self._live.pose_box(pose)
+        if self._live is not None:
+            # the first reading without an id came after this pose was finished, and no
+            # pose since: the records before it, narrowed as they were, bound it soundly
+            self._narrow()
+            self._raise_if_refuted()
         i = self._graph.pose_index(pose)
         return np.stack([self._grown.lo[i : i + 3], self._grown.hi[i : i + 3]], axis=-1)
 
