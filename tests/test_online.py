@@ -296,6 +296,41 @@ def test_the_lp_level_narrows_the_boxes_given_next() -> None:
     assert np.all(widths["lp"][-1] < 0.8 * widths["hull"][-1])
 
 
+def test_settle_keeps_the_window_from_a_time_it_could_overrun(monkeypatch) -> None:
+    """On a clock that stands still, ``settle`` runs the hull narrowing while more than
+    ``SETTLE_MARGIN_S`` is left, but not the ``lp`` window with less than twice
+    ``WINDOW_MARGIN_S``: the boxes are then those of level hull; without ``until`` the
+    window runs and narrows them."""
+    from cuikslam.online import session as session_module
+
+    log, _ = simulate_paper(seed=0)
+    sessions = {level: Session(consistency=level, work_per_pose=1) for level in ("hull", "lp")}
+    for session in sessions.values():
+        for record in log.records:
+            session.add(record)
+        session.finish()
+    assert sessions["hull"].settle() is True
+
+    def boxes(session: Session) -> np.ndarray:
+        return np.array([session.pose_box(pose) for pose in log.pose_ids])
+
+    def bounds(session: Session) -> np.ndarray:
+        n = session._grown.n_variables
+        return np.stack([session._grown.lo[:n], session._grown.hi[:n]])
+
+    hull = boxes(sessions["hull"])
+    lp = sessions["lp"]
+    with monkeypatch.context() as patch:
+        patch.setattr(session_module.time, "perf_counter", lambda: 100.0)
+        assert lp.settle(until=100.0) is False  # no time left: nothing starts
+        assert not np.array_equal(bounds(lp), bounds(sessions["hull"]))
+        assert lp.settle(until=100.0 + 1.5 * session_module.WINDOW_MARGIN_S) is False
+        assert np.array_equal(bounds(lp), bounds(sessions["hull"]))  # hull's, no window
+    assert lp.settle() is True
+    widths_hull, widths_lp = np.diff(hull).squeeze(-1), np.diff(boxes(lp)).squeeze(-1)
+    assert np.all(widths_lp <= widths_hull) and np.sum(widths_lp < widths_hull) > 0
+
+
 def test_a_session_has_the_levels_hull_and_lp_only() -> None:
     with pytest.raises(ValueError, match="hull or lp"):
         Session(consistency="lp-split")

@@ -19,7 +19,9 @@ updated at each finished pose; a pose's box is then the hull of theirs.
 
 from __future__ import annotations
 
+import math
 import time
+from collections import deque
 from collections.abc import Callable
 
 import numpy as np
@@ -46,14 +48,25 @@ from cuikslam.online.growing import GrowingGraph
 from cuikslam.online.hypotheses import LiveHypotheses
 from cuikslam.online.window import WINDOW_POSES, tighten_window
 
-__all__ = ["SETTLE_STEP", "WINDOW_WORK", "Session", "warm_up"]
+__all__ = ["SETTLE_MARGIN_S", "SETTLE_STEP", "WINDOW_MARGIN_S", "WINDOW_WORK", "Session", "warm_up"]
 
 WINDOW_WORK = 500_000.0
 """Work units the ``lp`` level may spend on the window of each finished pose at most (about
 half a second here; its LPs stop there, soundly)."""
-SETTLE_STEP = 5_000.0
+SETTLE_STEP = 1_000.0
 """Work units of each step of :meth:`Session.settle`, which checks the clock between
-steps."""
+steps (about 1 ms here)."""
+SETTLE_MARGIN_S = 0.002
+"""Seconds before its ``until`` after which :meth:`Session.settle` starts no step: a step
+started later could end after it (the caller would then be late for its next record)."""
+WINDOW_MARGIN_S = 0.025
+"""Seconds of its ``until`` that :meth:`Session.settle` keeps back from the ``lp`` window,
+which looks at the clock only between batches of LPs and has a fixed cost of its own
+(measured: up to 19 ms past a deadline on a 40-pose world at load 7)."""
+WINDOW_TIMES = 20
+"""The window starts before an ``until`` only when the time left exceeds the longest of
+the last ``WINDOW_TIMES`` windows (wall clock) by ``WINDOW_MARGIN_S`` (by twice that
+before the first), so that one cut short by its deadline is the exception."""
 
 
 class Session:
@@ -110,6 +123,8 @@ class Session:
         self.path = path
         self.rtol = rtol
         self._window_due = False
+        self._window_s: deque[float] = deque(maxlen=WINDOW_TIMES)
+        """Wall-clock seconds of the last windows."""
         self._pose_xs: set[int] = set()
         self.work_per_pose = work_per_pose
         self._check = OrderCheck(path)
@@ -179,24 +194,32 @@ class Session:
     def settle(self, until: float | None = None) -> bool:
         """Narrow what the records so far still owe (work a limit deferred, records not
         narrowed yet) to the fixpoint, in steps of ``SETTLE_STEP`` work units; with
-        ``until`` (a :func:`time.perf_counter` value), stop after the step that passes it.
-        Returns True at the fixpoint."""
+        ``until`` (a :func:`time.perf_counter` value), start no step within
+        ``SETTLE_MARGIN_S`` of it, and the ``lp`` window only when the time left is
+        ``WINDOW_MARGIN_S`` more than the longest of the last windows took, to end
+        ``WINDOW_MARGIN_S`` before it at the latest (see ``WINDOW_TIMES``). Returns True at
+        the fixpoint."""
         while self._live is None and self.refuted is None:
             if not (self._touched or len(self._deferred) or self._window_due):
                 return True
-            if until is not None and time.perf_counter() >= until:
-                return False
+            left = math.inf if until is None else until - time.perf_counter()
             if self._touched or len(self._deferred):
+                if left <= SETTLE_MARGIN_S:
+                    return False
                 self._narrow(SETTLE_STEP)
+            elif left <= WINDOW_MARGIN_S + max(self._window_s, default=WINDOW_MARGIN_S):
+                return False
             else:
-                self._tighten_window(until)
+                started = time.perf_counter()
+                self._tighten_window(left - WINDOW_MARGIN_S)
+                self._window_s.append(time.perf_counter() - started)
         return True
 
-    def _tighten_window(self, until: float | None) -> None:
-        """The ``lp`` level on the window of the last finished poses (see ``consistency``)."""
+    def _tighten_window(self, seconds: float) -> None:
+        """The ``lp`` level on the window of the last finished poses (see ``consistency``),
+        for at most ``seconds`` (``math.inf``: no time limit) and ``WINDOW_WORK``."""
         self._window_due = False
         poses = self.finished[-WINDOW_POSES:]
-        seconds = None if until is None else until - time.perf_counter()
         deadline = Budget.start(WINDOW_WORK, seconds)
         xs = np.array([self._graph.pose_index(p) for p in poses], dtype=np.int64)
         shrank, consistent = tighten_window(self._grown, xs, self._pose_xs, deadline)
