@@ -9,12 +9,16 @@ Sections (each writes its part of ``benchmarks/results/online.json``):
   checks one box per pose, in the order the log reaches the poses; every box against the
   truth file (exactly, headings modulo 2π); the latency per pose (wall clock, from the
   arrival of the record that finished the pose to its box) and the CPU time of the call
-  that gave it; and the last pose's box against the batch ``hull`` solve's. It then runs
-  the command itself on the same log and checks that it writes the same lines.
+  that gave it; and the last pose's box against the batch ``hull`` solve's. It follows
+  each log ``--repeats`` times (the latency's 99th percentile of each run: the machine's
+  load moves), then once more narrowing to the fixpoint at every pose
+  (``work_per_pose=None``), to count the lines that the work limit left wider. It then
+  runs the command itself on the same log and checks that it writes the same lines.
 - ``woods``: Lost in the Woods, the whole run with known correspondence (the importer's
   defaults: keyframes of 10 samples, every reading, each record stamped with its time),
   replayed at its recorded pace (``--rate 1``: about 21 minutes): whether the session ever
-  fell behind, and every Vicon pose against its box.
+  fell behind, how long after its time each instant was fed (the lag), and every Vicon
+  pose against its box.
 - ``paper``: the seed's experiment with the landmark ids dropped, followed online: the
   live hypotheses of its last line against the batch solve's survivors.
 - ``lp``: the lines at level ``lp`` (the polytope hull on the window of the last poses)
@@ -26,6 +30,7 @@ recorded with every section: wall-clock figures are inflated on a busy machine, 
 figures much less.
 
     python benchmarks/bench_online.py known [--poses 2000] [--seed 0] [--landmarks 10 60]
+                                            [--repeats 3]
     python benchmarks/bench_online.py woods [--rate 1]
     python benchmarks/bench_online.py paper
     python benchmarks/bench_online.py lp [--lp-poses 300]
@@ -45,6 +50,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cuikslam.budget import ONLINE_WORK_PER_POSE
 from cuikslam.online.estimate import PoseEstimate
 from cuikslam.online.follow import FollowReport, follow, log_lines
 from cuikslam.online.session import Session
@@ -86,9 +92,14 @@ class Followed:
     cpu_total_s: float = 0.0
 
 
-def follow_file(path: Path, rate: float | None = None, consistency: str = "hull") -> Followed:
+def follow_file(
+    path: Path,
+    rate: float | None = None,
+    consistency: str = "hull",
+    work_per_pose: float | None = ONLINE_WORK_PER_POSE,
+) -> Followed:
     """Follow the log at ``path`` as ``cuikslam follow`` does, measuring each pose."""
-    session = Session(path=str(path), consistency=consistency)
+    session = Session(path=str(path), consistency=consistency, work_per_pose=work_per_pose)
     out = Followed(session, FollowReport())
     add, settle = session.add, session.settle
 
@@ -130,7 +141,15 @@ def _boxes(line: dict) -> dict:
     return {k: v for k, v in line.items() if k != "latency_s"}
 
 
-def run_known(poses: int, seed: int, landmarks: int, folder: Path) -> dict:
+def _wider(boxes: list[np.ndarray], fixpoint: list[np.ndarray]) -> tuple[int, list[float]]:
+    """Boxes wider than at the fixpoint, and the largest ratio of widths per coordinate."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.diff(np.array(boxes)).squeeze(-1) / np.diff(np.array(fixpoint)).squeeze(-1)
+    ratio = np.where(np.isfinite(ratio), ratio, 1.0)
+    return int(np.sum(np.any(ratio > 1.0, axis=1))), [round(float(v), 4) for v in ratio.max(0)]
+
+
+def run_known(poses: int, seed: int, landmarks: int, folder: Path, repeats: int = 1) -> dict:
     from cuikslam.log.reader import read_log_file
     from cuikslam.online.estimate import check_estimates
     from cuikslam.simulate.truth import read_truth_file
@@ -147,6 +166,10 @@ def run_known(poses: int, seed: int, landmarks: int, folder: Path) -> dict:
     load_before = _load()
     run = follow_file(log_path)
     load_after = _load()
+    again = [follow_file(log_path) for _ in range(repeats - 1)]
+    load_end = _load()
+    fixpoint = follow_file(log_path, work_per_pose=None)
+    wider, wider_ratio = _wider([e.box for e in run.estimates], [e.box for e in fixpoint.estimates])
     estimates = run.estimates
     verdict = check_estimates(estimates, truth)
     batch = solve(log, consistency="hull", certify_limit=0).hypotheses[0]
@@ -170,6 +193,18 @@ def run_known(poses: int, seed: int, landmarks: int, folder: Path) -> dict:
         "cpu_per_pose_ms": _stats(run.cpu_s),
         "applications_per_pose": _stats(run.applications, scale=1.0),
         "work_per_pose": run.session.work_per_pose,
+        "latency_p99_ms_repeats": [
+            _stats([e.latency_s for e in r.estimates])["p99"] for r in (run, *again)
+        ],
+        "latency_max_ms_repeats": [
+            _stats([e.latency_s for e in r.estimates])["max"] for r in (run, *again)
+        ],
+        "cpu_p99_ms_repeats": [_stats(r.cpu_s)["p99"] for r in (run, *again)],
+        "load_after_repeats": load_end,
+        "lines_wider_than_fixpoint": wider,
+        "max_width_ratio_to_fixpoint": wider_ratio,
+        "fixpoint_latency_ms": _stats([e.latency_s for e in fixpoint.estimates]),
+        "fixpoint_cpu_per_pose_ms": _stats(fixpoint.cpu_s),
         "total_s": round(run.wall_s, 2),
         "total_cpu_s": round(run.cpu_total_s, 2),
         "last_pose": last.pose,
@@ -213,6 +248,8 @@ def run_woods(rate: float, folder: Path) -> dict:
         "behind": report.late,
         "worst_late_ms": round(1000 * report.worst_late_s, 3),
         "worst_late_line": report.worst_late_line,
+        "lag_ms": _stats(report.lags_s),
+        "lag_over_10ms": sum(lag > 0.010 for lag in report.lags_s),
         "lines": len(estimates),
         "vicon_poses_checked": verdict.checked // 3,
         "truth_misses": len(verdict.misses),
@@ -235,6 +272,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--poses", type=int, default=2000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--landmarks", type=int, nargs="+", default=[10, 60])
+    parser.add_argument("--repeats", type=int, default=3, help="known: runs of each log")
     parser.add_argument("--rate", type=float, default=1.0, help="woods: replay pace")
     parser.add_argument("--lp-poses", type=int, default=300, help="lp: the random world's poses")
     args = parser.parse_args(argv)
@@ -246,23 +284,25 @@ def main(argv: list[str] | None = None) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         if args.section == "known":
-            rows = [run_known(args.poses, args.seed, n, folder) for n in args.landmarks]
+            rows = [
+                run_known(args.poses, args.seed, n, folder, args.repeats) for n in args.landmarks
+            ]
             for row in rows:
                 print(json.dumps(row))
-            _save("known", {"date": time.strftime("%Y-%m-%d"), "runs": rows})
+            _save("known", {"date": time.strftime("%Y-%m-%d %H:%M"), "runs": rows})
         elif args.section == "woods":
             row = run_woods(args.rate, folder)
             print(json.dumps(row))
-            _save("woods", {"date": time.strftime("%Y-%m-%d"), **row})
+            _save("woods", {"date": time.strftime("%Y-%m-%d %H:%M"), **row})
         elif args.section == "paper":
             row = run_paper(folder)
             print(json.dumps(row))
-            _save("paper", {"date": time.strftime("%Y-%m-%d"), **row})
+            _save("paper", {"date": time.strftime("%Y-%m-%d %H:%M"), **row})
         else:
             rows = run_lp(folder, args.lp_poses)
             for row in rows:
                 print(json.dumps(row))
-            _save("lp", {"date": time.strftime("%Y-%m-%d"), "runs": rows})
+            _save("lp", {"date": time.strftime("%Y-%m-%d %H:%M"), "runs": rows})
 
 
 def run_paper(folder: Path) -> dict:

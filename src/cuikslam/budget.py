@@ -102,9 +102,9 @@ ONLINE_WORK_PER_POSE = 1_000.0
 """Work units an online session (:class:`cuikslam.online.Session`, ``cuikslam follow``)
 may spend narrowing before it gives a finished pose's box, by default: about 1 ms here;
 the rest of the narrowing follows the box. On a 2,000-pose log with a landmark in view at
-nearly every pose, 1 % of the poses need more (up to 5,000 units, where a loop closes);
-cut at 1,000, 24 of 2,000 boxes were at most 2.5 % wider than at the fixpoint (measured in
-``docs/online.md``)."""
+nearly every pose, 1 % of the poses need more (up to about 30,000 units where a loop
+closes); cut at 1,000, 34 of its 2,000 boxes are wider than at the fixpoint, by at most
+2.5 % (measured in ``docs/online.md``)."""
 STRENGTHEN_SHARE = 0.7
 """Fraction of the budget left after hull narrowing that the stronger level may use; the
 witness search gets the rest (and whatever the stronger level did not need)."""
