@@ -373,6 +373,30 @@ def test_growing_arrays_narrow_bit_for_bit_like_the_batch_graph() -> None:
     assert np.array_equal(grown.hi[: len(hi)], batch.hi)
 
 
+def test_the_arrays_grow_ahead_of_the_records_when_there_is_time() -> None:
+    """``settle`` doubles arrays more than 3/4 full, so that a record seldom waits for it,
+    and a graph grown so narrows bit for bit like the batch graph."""
+    log, _ = simulate_random_world(seed=1, n_poses=150, n_landmarks=20)
+    session = Session()
+    for record in log.records:
+        session.add(record)
+        assert session.settle() is True and not session._grown.nearly_full
+    assert session._grown.n_factors > 2 * 256  # past two capacities
+    graph = KinematicGraph.from_log(log)
+    grown = GrowingGraph(rtol=1e-3)
+    grown.add_variables(*graph.domains())
+    grown.add_factors(graph.factor_table())
+    capacity = len(grown.factors)
+    assert grown.nearly_full
+    grown.grow()
+    assert len(grown.factors) == 2 * capacity and not grown.nearly_full
+    result = grown.narrow(np.arange(graph.n_factors))
+    batch = propagate(graph)
+    assert result.status is Status.CONSISTENT and result.applications == batch.applications
+    n = graph.n_variables
+    assert np.array_equal(grown.lo[:n], batch.lo) and np.array_equal(grown.hi[:n], batch.hi)
+
+
 def test_work_left_by_a_limit_is_resumed_to_the_fixpoint() -> None:
     """Narrowing 50 applications at a time, from what each call deferred, ends at a
     fixpoint: waking every factor afterwards applies each once and wakes nobody."""

@@ -125,6 +125,9 @@ class Session:
         self._window_due = False
         self._window_s: deque[float] = deque(maxlen=WINDOW_TIMES)
         """Wall-clock seconds of the last windows."""
+        self._grow_s = 0.0
+        """Wall-clock seconds the arrays took to grow last (the next, twice as large, is
+        started with four times that left)."""
         self._pose_xs: set[int] = set()
         self.work_per_pose = work_per_pose
         self._check = OrderCheck(path)
@@ -193,20 +196,30 @@ class Session:
 
     def settle(self, until: float | None = None) -> bool:
         """Narrow what the records so far still owe (work a limit deferred, records not
-        narrowed yet) to the fixpoint, in steps of ``SETTLE_STEP`` work units; with
+        narrowed yet) to the fixpoint, in steps of ``SETTLE_STEP`` work units, then
+        grow the graph's arrays when they are nearly full (so that a record seldom has to
+        wait for it; :meth:`.growing.GrowingGraph.grow`), then the ``lp`` window. With
         ``until`` (a :func:`time.perf_counter` value), start no step within
-        ``SETTLE_MARGIN_S`` of it, and the ``lp`` window only when the time left is
+        ``SETTLE_MARGIN_S`` of it (nor the arrays' growth within four times the time the
+        last one took), and the ``lp`` window only when the time left is
         ``WINDOW_MARGIN_S`` more than the longest of the last windows took, to end
         ``WINDOW_MARGIN_S`` before it at the latest (see ``WINDOW_TIMES``). Returns True at
         the fixpoint."""
         while self._live is None and self.refuted is None:
-            if not (self._touched or len(self._deferred) or self._window_due):
+            grow = self._grown.nearly_full
+            if not (self._touched or len(self._deferred) or self._window_due or grow):
                 return True
             left = math.inf if until is None else until - time.perf_counter()
             if self._touched or len(self._deferred):
                 if left <= SETTLE_MARGIN_S:
                     return False
                 self._narrow(SETTLE_STEP)
+            elif grow:
+                if left <= SETTLE_MARGIN_S + 4 * self._grow_s:
+                    return False
+                started = time.perf_counter()
+                self._grown.grow()
+                self._grow_s = time.perf_counter() - started
             elif left <= WINDOW_MARGIN_S + max(self._window_s, default=WINDOW_MARGIN_S):
                 return False
             else:
