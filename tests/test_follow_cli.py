@@ -8,6 +8,7 @@ import subprocess
 import time
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from cuikslam.log.writer import log_to_lines
@@ -43,6 +44,34 @@ def test_one_line_per_pose_in_order_holding_the_truth(world, tmp_path) -> None:
     assert all(list(line) == KEYS and line["hypotheses"] == 1 for line in lines)
     assert f"truth: all {len(poses)} boxes with a true pose hold it" in result.stderr
     assert "\r" not in result.stderr  # no status line off a terminal
+
+
+def widths(lines: list[dict]) -> np.ndarray:
+    """The (poses, 3) widths of the boxes of JSON lines (an unbounded side: infinite)."""
+    inf = float("inf")
+    return np.array(
+        [
+            [(inf if hi is None else hi) - (-inf if lo is None else lo) for lo, hi in sides]
+            for sides in ([line["x"], line["y"], line["theta"]] for line in lines)
+        ]
+    )
+
+
+def test_the_lp_level_keeps_the_truth_and_narrows_beyond_hull(world, tmp_path) -> None:
+    """``--consistency lp`` runs the window (:mod:`cuikslam.online.window`) end to end: its
+    lines hold the truth, none is wider than at ``hull``, and most are narrower."""
+    log, truth, poses = world
+    lines = {}
+    for level in ("hull", "lp"):
+        result = run("follow", log, "--consistency", level, "--truth", truth, cwd=tmp_path)
+        assert result.returncode == 0, result.stderr
+        assert f"truth: all {len(poses)} boxes with a true pose hold it" in result.stderr
+        lines[level] = lines_of(result.stdout)
+        assert [line["pose"] for line in lines[level]] == poses
+    hull, lp = widths(lines["hull"]), widths(lines["lp"])
+    assert np.all(lp <= hull)
+    assert np.sum(lp < hull) > hull.size // 2
+    assert lp[-1, 0] < 0.5 * hull[-1, 0]
 
 
 def test_standard_input_and_an_output_file(world, tmp_path) -> None:

@@ -142,14 +142,22 @@ SMALL = {"poses": (4, 8), "landmarks": (2, 5), "max_observations": 14}
 
 
 def check_unknown(world: World, naming: str) -> None:
-    """Each finished pose's box (the hull over the live hypotheses) holds the truth, and
-    the true correspondence is alive at the end."""
+    """Each finished pose's box (the hull over the live hypotheses), when it is given and
+    asked again after every record, holds the truth, and the true correspondence is alive
+    at the end."""
     note(world.notes[0])
     note("\n".join(world.lines(naming)))
     log = world.log(naming)
     assume(log_violations(log, world.truth) == [])
     session = Session()
-    estimates = [e for e in map(session.add, log.records) if e is not None]
+    estimates = []
+    for record in log.records:
+        estimate = session.add(record)
+        if estimate is not None:
+            estimates.append(estimate)
+        assert session.refuted is None, session.refuted
+        for pose in session.finished:  # asked after every record
+            assert pose_misses(session.pose_box(pose), world.truth, pose) == []
     estimates.append(session.finish())
     assert session.refuted is None, session.refuted
     for estimate in estimates:
@@ -185,6 +193,23 @@ def test_the_seeds_experiment_online_keeps_the_batch_survivors() -> None:
     assert online == sorted(partition(h.assignment, set()) for h in batch.hypotheses)
     assert last.hypotheses == batch.statistics["survivors"] == 2 and max(counts) <= 2
     assert correspondence(truth.assignment, ()) in {correspondence(a, ()) for a in online}
+
+
+def test_poses_reached_before_the_first_reading_without_an_id_keep_their_boxes() -> None:
+    """Until the next pose is finished, the live hypotheses have no boxes of their own:
+    a pose's box is then that of the records before the reading."""
+    session = Session()
+    session.add(PosePrior(0, (0, 0), (0, 0), (0, 0)))
+    assert session.add(Odometry(0, 1, (0, 0), (1, 1.5))).pose == 0
+    before = session.pose_box(1)
+    session.add(Observation(1, "post", (1, 2), (-0.1, 0.1)))  # no id
+    assert session.pose_box(0).tolist() == [[0, 0], [0, 0], [0, 0]]
+    assert session.pose_box(1).tolist() == before.tolist()
+    assert session.hypotheses == 1
+    assert session.add(Odometry(1, 2, (0, 0), (1, 1))).pose == 1  # the first update
+    assert session.pose_box(1)[0] == pytest.approx([1, 1.5]) and session.hypotheses == 1
+    with pytest.raises(KeyError):
+        session.pose_box(2)  # reached after the update
 
 
 # --- when poses are finished ---------------------------------------------------------------
@@ -271,6 +296,41 @@ def test_the_lp_level_narrows_the_boxes_given_next() -> None:
     assert np.all(widths["lp"][-1] < 0.8 * widths["hull"][-1])
 
 
+def test_settle_keeps_the_window_from_a_time_it_could_overrun(monkeypatch) -> None:
+    """On a clock that stands still, ``settle`` runs the hull narrowing while more than
+    ``SETTLE_MARGIN_S`` is left, but not the ``lp`` window with less than twice
+    ``WINDOW_MARGIN_S``: the boxes are then those of level hull; without ``until`` the
+    window runs and narrows them."""
+    from cuikslam.online import session as session_module
+
+    log, _ = simulate_paper(seed=0)
+    sessions = {level: Session(consistency=level, work_per_pose=1) for level in ("hull", "lp")}
+    for session in sessions.values():
+        for record in log.records:
+            session.add(record)
+        session.finish()
+    assert sessions["hull"].settle() is True
+
+    def boxes(session: Session) -> np.ndarray:
+        return np.array([session.pose_box(pose) for pose in log.pose_ids])
+
+    def bounds(session: Session) -> np.ndarray:
+        n = session._grown.n_variables
+        return np.stack([session._grown.lo[:n], session._grown.hi[:n]])
+
+    hull = boxes(sessions["hull"])
+    lp = sessions["lp"]
+    with monkeypatch.context() as patch:
+        patch.setattr(session_module.time, "perf_counter", lambda: 100.0)
+        assert lp.settle(until=100.0) is False  # no time left: nothing starts
+        assert not np.array_equal(bounds(lp), bounds(sessions["hull"]))
+        assert lp.settle(until=100.0 + 1.5 * session_module.WINDOW_MARGIN_S) is False
+        assert np.array_equal(bounds(lp), bounds(sessions["hull"]))  # hull's, no window
+    assert lp.settle() is True
+    widths_hull, widths_lp = np.diff(hull).squeeze(-1), np.diff(boxes(lp)).squeeze(-1)
+    assert np.all(widths_lp <= widths_hull) and np.sum(widths_lp < widths_hull) > 0
+
+
 def test_a_session_has_the_levels_hull_and_lp_only() -> None:
     with pytest.raises(ValueError, match="hull or lp"):
         Session(consistency="lp-split")
@@ -311,6 +371,30 @@ def test_growing_arrays_narrow_bit_for_bit_like_the_batch_graph() -> None:
     assert result.applications == batch.applications
     assert np.array_equal(grown.lo[: len(lo)], batch.lo)
     assert np.array_equal(grown.hi[: len(hi)], batch.hi)
+
+
+def test_the_arrays_grow_ahead_of_the_records_when_there_is_time() -> None:
+    """``settle`` doubles arrays more than 3/4 full, so that a record seldom waits for it,
+    and a graph grown so narrows bit for bit like the batch graph."""
+    log, _ = simulate_random_world(seed=1, n_poses=150, n_landmarks=20)
+    session = Session()
+    for record in log.records:
+        session.add(record)
+        assert session.settle() is True and not session._grown.nearly_full
+    assert session._grown.n_factors > 2 * 256  # past two capacities
+    graph = KinematicGraph.from_log(log)
+    grown = GrowingGraph(rtol=1e-3)
+    grown.add_variables(*graph.domains())
+    grown.add_factors(graph.factor_table())
+    capacity = len(grown.factors)
+    assert grown.nearly_full
+    grown.grow()
+    assert len(grown.factors) == 2 * capacity and not grown.nearly_full
+    result = grown.narrow(np.arange(graph.n_factors))
+    batch = propagate(graph)
+    assert result.status is Status.CONSISTENT and result.applications == batch.applications
+    n = graph.n_variables
+    assert np.array_equal(grown.lo[:n], batch.lo) and np.array_equal(grown.hi[:n], batch.hi)
 
 
 def test_work_left_by_a_limit_is_resumed_to_the_fixpoint() -> None:
@@ -392,6 +476,7 @@ def test_records_are_fed_at_their_recorded_times() -> None:
     report, _, added = paced(work_s=0.0, rate=2.0)
     assert added == [1000.0, 1000.5, 1000.5, 1000.75]
     assert (report.instants, report.late, report.poses) == (3, 0, 3)
+    assert report.lags_s == [0.0, 0.0, 0.0]
 
 
 def test_a_session_slower_than_the_records_is_reported_behind() -> None:
@@ -401,6 +486,7 @@ def test_a_session_slower_than_the_records_is_reported_behind() -> None:
     # third was being added (done at 1001.6)
     assert report.late == 1 and report.worst_late_line == 4
     assert report.worst_late_s == pytest.approx(0.1)
+    assert report.lags_s == pytest.approx([0.0, 0.0, 0.1])
 
 
 def test_pacer_keeps_time_stamps_that_go_back_at_the_latest() -> None:

@@ -142,6 +142,9 @@ class FollowReport:
     """With a rate: how long after it fell due the latest such instant could start."""
     worst_late_line: int = 0
     """With a rate: the line of the record that started that instant."""
+    lags_s: list[float] = field(default_factory=list)
+    """With a rate: for each instant, how long after it fell due its first record was
+    fed (when on time, how late the wait for it woke up)."""
 
     def latency_percentile(self, q: float) -> float:
         """The ``q``-th percentile of the latencies (NaN without poses)."""
@@ -159,15 +162,15 @@ def follow(
 ) -> FollowReport:
     """Feed numbered log lines to ``session``; ``on_pose`` gets each finished pose's box.
 
-    The narrowing a pose's work limit left (:meth:`Session.settle`: and the ``lp`` level's
-    window, at that level) is done right after its box is given, or, with a ``rate``,
-    while waiting for the next record. The records
-    a session keeps live as long as it does: while following, the objects of the process
-    are moved out of the garbage collector's reach (:func:`gc.freeze`) at each pose given,
-    so that its full collections, whose cost grows with the log (200 ms on half of Lost in
-    the Woods), do not stall a pose; they are given back to it at the end. The input
-    ends with ``lines``, or with Ctrl-C (then the last pose is finished all the
-    same, and ``interrupted`` is set), or once the records are proven inconsistent.
+    What a pose's work limit left of the narrowing, and at level ``lp`` the window
+    (:meth:`Session.settle`), is done right after the pose's box is given, or, with a
+    ``rate``, while the next record is not due. The records a session keeps live as long
+    as it does, so while following, the objects of the process are moved out of the
+    garbage collector's reach at each pose given (:func:`gc.freeze`; given back at the
+    end): its full collections, whose cost grows with the log (200 ms halfway through Lost
+    in the Woods), then do not stall a pose. The input ends with ``lines``, with Ctrl-C
+    (the last pose is finished all the same, and ``interrupted`` is set), or once the
+    records are proven inconsistent.
 
     Parameters
     ----------
@@ -219,6 +222,8 @@ def follow(
                             report.worst_late_s, report.worst_late_line = ready - due, number
                 if due > ready:
                     sleep(due - ready)
+                if new_instant:
+                    report.lags_s.append(max(0.0, clock() - due))
                 received = due
             estimate = session.add(record, received=received)
             give(estimate)

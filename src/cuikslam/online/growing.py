@@ -86,17 +86,35 @@ class GrowingGraph:
         self._memory = memory
         self._applied = np.empty(capacity, dtype=np.int64)
 
+    def _allocate_variables(self, capacity: int) -> None:
+        """(Re)size the bounds and the adjacency heads."""
+        first = self.n_variables
+        self.lo = np.concatenate([self.lo[:first], np.empty(capacity - first)])
+        self.hi = np.concatenate([self.hi[:first], np.empty(capacity - first)])
+        head = np.full(capacity, -1, dtype=np.int64)
+        head[:first] = self.head[:first]
+        self.head = head
+
+    @property
+    def nearly_full(self) -> bool:
+        """True when the variables or the factors fill more than 3/4 of their arrays."""
+        return 4 * self.n_variables > 3 * len(self.lo) or 4 * self.n_factors > 3 * len(self.factors)
+
+    def grow(self) -> None:
+        """Double the capacity of whichever arrays are :attr:`nearly_full`, ahead of the
+        records that would fill them (its cost, proportional to the graph, can then be
+        paid when there is time)."""
+        if 4 * self.n_variables > 3 * len(self.lo):
+            self._allocate_variables(2 * len(self.lo))
+        if 4 * self.n_factors > 3 * len(self.factors):
+            self._allocate_factors(2 * len(self.factors))
+
     def add_variables(self, lo: np.ndarray, hi: np.ndarray) -> int:
         """New variables with these bounds; returns the index of the first."""
         lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
         first, needed = self.n_variables, self.n_variables + len(lo)
         if needed > len(self.lo):
-            capacity = max(needed, 2 * len(self.lo))
-            self.lo = np.concatenate([self.lo[:first], np.empty(capacity - first)])
-            self.hi = np.concatenate([self.hi[:first], np.empty(capacity - first)])
-            head = np.full(capacity, -1, dtype=np.int64)
-            head[:first] = self.head[:first]
-            self.head = head
+            self._allocate_variables(max(needed, 2 * len(self.lo)))
         self.lo[first:needed], self.hi[first:needed] = lo, hi
         self.n_variables = needed
         return first
@@ -133,8 +151,12 @@ class GrowingGraph:
             touched, self.rtol, self.max_rounds, int(max_applications), self._queue,
             self._state, self._memory, self._applied, True,
         )  # fmt: skip
-        left = int(np.argmax(self._queue < 0))  # the factors still queued come first
-        return Narrowing(Status(status), int(applications), self._queue[:left].copy())
+        status = Status(status)
+        if status is Status.BUDGET_EXHAUSTED:  # the factors still queued come first
+            left = self._queue[: int(np.argmax(self._queue < 0))].copy()
+        else:
+            left = self._queue[:0].copy()
+        return Narrowing(status, int(applications), left)
 
     def arrays(self) -> Arrays:
         """The graph as the narrowing functions take it (views, without spare capacity)."""

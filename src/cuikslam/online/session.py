@@ -11,11 +11,18 @@ the compiled propagation goes on from there only through the variables that shri
 (:class:`~.growing.GrowingGraph`). Every box holds the truth whenever every record holds
 its own, as in a batch solve; only the order of the narrowing steps differs, so a box may
 differ from the batch ``hull`` box within the propagation's tolerance (``rtol``).
+
+From the first reading without a landmark id (or an ``outliers`` record) on, the session
+keeps the live correspondence hypotheses instead (:class:`~.hypotheses.LiveHypotheses`),
+updated at each finished pose; a pose's box is then the hull of theirs.
 """
 
 from __future__ import annotations
 
+import math
 import time
+from collections import deque
+from collections.abc import Callable
 
 import numpy as np
 
@@ -41,14 +48,25 @@ from cuikslam.online.growing import GrowingGraph
 from cuikslam.online.hypotheses import LiveHypotheses
 from cuikslam.online.window import WINDOW_POSES, tighten_window
 
-__all__ = ["SETTLE_STEP", "WINDOW_WORK", "Session", "warm_up"]
+__all__ = ["SETTLE_MARGIN_S", "SETTLE_STEP", "WINDOW_MARGIN_S", "WINDOW_WORK", "Session", "warm_up"]
 
 WINDOW_WORK = 500_000.0
 """Work units the ``lp`` level may spend on the window of each finished pose at most (about
 half a second here; its LPs stop there, soundly)."""
-SETTLE_STEP = 5_000.0
+SETTLE_STEP = 1_000.0
 """Work units of each step of :meth:`Session.settle`, which checks the clock between
-steps."""
+steps (about 1 ms here)."""
+SETTLE_MARGIN_S = 0.002
+"""Seconds before its ``until`` after which :meth:`Session.settle` starts no step: a step
+started later could end after it (the caller would then be late for its next record)."""
+WINDOW_MARGIN_S = 0.025
+"""Seconds of its ``until`` that :meth:`Session.settle` keeps back from the ``lp`` window,
+which looks at the clock only between batches of LPs and has a fixed cost of its own
+(measured: up to 19 ms past a deadline on a 40-pose world at load 7)."""
+WINDOW_TIMES = 20
+"""The window starts before an ``until`` only when the time left exceeds the longest of
+the last ``WINDOW_TIMES`` windows (wall clock) by ``WINDOW_MARGIN_S`` (by twice that
+before the first), so that one cut short by its deadline is the exception."""
 
 
 class Session:
@@ -105,6 +123,11 @@ class Session:
         self.path = path
         self.rtol = rtol
         self._window_due = False
+        self._window_s: deque[float] = deque(maxlen=WINDOW_TIMES)
+        """Wall-clock seconds of the last windows."""
+        self._grow_s = 0.0
+        """Wall-clock seconds the arrays took to grow last (the next, twice as large, is
+        started with four times that left)."""
         self._pose_xs: set[int] = set()
         self.work_per_pose = work_per_pose
         self._check = OrderCheck(path)
@@ -147,8 +170,7 @@ class Session:
         ------
         InputFileError
             When the record breaks a rule of the log format given the records before it
-            (naming ``path`` and the record's line), or asks for what a session does not
-            do yet.
+            (naming ``path`` and the record's line).
         """
         received = time.perf_counter() if received is None else received
         if self.refuted is not None:
@@ -174,25 +196,43 @@ class Session:
 
     def settle(self, until: float | None = None) -> bool:
         """Narrow what the records so far still owe (work a limit deferred, records not
-        narrowed yet) to the fixpoint, in steps of ``SETTLE_STEP`` work units; with
-        ``until`` (a :func:`time.perf_counter` value), stop after the step that passes it.
-        Returns True at the fixpoint."""
+        narrowed yet) to the fixpoint, in steps of ``SETTLE_STEP`` work units, then
+        grow the graph's arrays when they are nearly full (so that a record seldom has to
+        wait for it; :meth:`.growing.GrowingGraph.grow`), then the ``lp`` window. With
+        ``until`` (a :func:`time.perf_counter` value), start no step within
+        ``SETTLE_MARGIN_S`` of it (nor the arrays' growth within four times the time the
+        last one took), and the ``lp`` window only when the time left is
+        ``WINDOW_MARGIN_S`` more than the longest of the last windows took, to end
+        ``WINDOW_MARGIN_S`` before it at the latest (see ``WINDOW_TIMES``). Returns True at
+        the fixpoint."""
         while self._live is None and self.refuted is None:
-            if not (self._touched or len(self._deferred) or self._window_due):
+            grow = self._grown.nearly_full
+            if not (self._touched or len(self._deferred) or self._window_due or grow):
                 return True
-            if until is not None and time.perf_counter() >= until:
-                return False
+            left = math.inf if until is None else until - time.perf_counter()
             if self._touched or len(self._deferred):
+                if left <= SETTLE_MARGIN_S:
+                    return False
                 self._narrow(SETTLE_STEP)
+            elif grow:
+                if left <= SETTLE_MARGIN_S + 4 * self._grow_s:
+                    return False
+                started = time.perf_counter()
+                self._grown.grow()
+                self._grow_s = time.perf_counter() - started
+            elif left <= WINDOW_MARGIN_S + max(self._window_s, default=WINDOW_MARGIN_S):
+                return False
             else:
-                self._tighten_window(until)
+                started = time.perf_counter()
+                self._tighten_window(left - WINDOW_MARGIN_S)
+                self._window_s.append(time.perf_counter() - started)
         return True
 
-    def _tighten_window(self, until: float | None) -> None:
-        """The ``lp`` level on the window of the last finished poses (see ``consistency``)."""
+    def _tighten_window(self, seconds: float) -> None:
+        """The ``lp`` level on the window of the last finished poses (see ``consistency``),
+        for at most ``seconds`` (``math.inf``: no time limit) and ``WINDOW_WORK``."""
         self._window_due = False
         poses = self.finished[-WINDOW_POSES:]
-        seconds = None if until is None else until - time.perf_counter()
         deadline = Budget.start(WINDOW_WORK, seconds)
         xs = np.array([self._graph.pose_index(p) for p in poses], dtype=np.int64)
         shrank, consistent = tighten_window(self._grown, xs, self._pose_xs, deadline)
@@ -212,7 +252,7 @@ class Session:
         """Correspondence hypotheses alive: 1 with known correspondence (0 once refuted)."""
         if self.refuted is not None:
             return 0
-        return 1 if self._live is None else len(self._live)
+        return 1 if self._live is None or self._live.explorer is None else len(self._live)
 
     def assignments(self) -> list[list[str]]:
         """The landmark of each observation so far (log order) in each live hypothesis
@@ -227,17 +267,28 @@ class Session:
     def pose_box(self, pose: int) -> np.ndarray:
         """The (3, 2) box of any pose reached so far, every record added so far narrowed in.
 
+        With unknown correspondence, the hull of its boxes over the live hypotheses as of
+        the last finished pose (the records since come in when the next pose is
+        finished); before the first pose finished after the first reading without an id,
+        its box from the records before that reading.
+
         Raises
         ------
         KeyError
-            For a pose not reached yet.
+            For a pose not reached yet (with unknown correspondence: not reached when the
+            last pose was finished).
         ValueError
             Once the records are proven inconsistent (:attr:`refuted`).
         """
         self.settle()
         self._raise_if_refuted()
-        if self._live is not None:
+        if self._live is not None and self._live.explorer is not None:
             return self._live.pose_box(pose)
+        if self._live is not None:
+            # the first reading without an id came after this pose was finished, and no
+            # pose since: the records before it, narrowed as they were, bound it soundly
+            self._narrow()
+            self._raise_if_refuted()
         i = self._graph.pose_index(pose)
         return np.stack([self._grown.lo[i : i + 3], self._grown.hi[i : i + 3]], axis=-1)
 
@@ -323,7 +374,7 @@ class Session:
                             graph.landmark_index(landmark), 2, lambda v: v.meet_point(0, x, y)
                         )
 
-    def _meet(self, first: int, n: int, meet) -> None:
+    def _meet(self, first: int, n: int, meet: Callable[[Variables], None]) -> None:
         """Intersect the bounds of variables ``first .. first + n - 1`` as ``meet`` does on
         a :class:`~cuikslam.graph.variables.Variables` of them (headings modulo 2π), and
         wake the factors of those that shrink."""
@@ -341,14 +392,15 @@ class Session:
             self._touched.append(grown.factors_of(changed))
 
     def _narrow(self, work: float | None = None) -> None:
-        """Narrow from every factor the records since the last call touched, within
-        ``work`` units (None: no limit)."""
+        """Narrow from every factor the records since the last call touched, then from
+        those a work limit deferred before (a finished pose's own records go first),
+        within ``work`` units (None: no limit)."""
         if self.refuted is not None:
             return
         if not (self._touched or len(self._deferred)):
             self._pending_lines = []
             return
-        touched = np.concatenate([self._deferred, *self._touched])
+        touched = np.concatenate([*self._touched, self._deferred])
         self._touched = []
         limit = 2**62 if work is None else max(1, int(work / COSTS["operator"]))
         result = self._grown.narrow(touched, limit)
