@@ -27,7 +27,7 @@ from cuikslam.log.records import (
 )
 from cuikslam.messages import Message
 from cuikslam.narrowing.outliers import NO_LIMIT, OutlierScope, RelaxedReport
-from cuikslam.results.solution import Hypothesis, Solution
+from cuikslam.outcome.solution import Hypothesis, Solution
 
 __all__ = [
     "LISTED",

@@ -30,6 +30,7 @@ from cuikslam.narrowing.consistency import StrengthenReport, strengthen
 from cuikslam.narrowing.outliers import RelaxedReport, narrow_with_outliers
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
 from cuikslam.options import Level, SolveOptions
+from cuikslam.outcome.solution import Solution
 from cuikslam.outliers import (
     certify_without_outliers,
     hypothesis_outlier_messages,
@@ -37,7 +38,6 @@ from cuikslam.outliers import (
     outlier_scope,
     outliers_to_json,
 )
-from cuikslam.results.solution import Solution
 
 __all__ = ["budget_message", "hypothesis_from_graph", "solve"]
 

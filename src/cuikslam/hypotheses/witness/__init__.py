@@ -21,7 +21,7 @@ The stages, one module each:
   parameter, every motion a check: a sparse Jacobian), where the search minimises;
 * :mod:`.find`: :func:`find_witness`, the local search for a point that verifies;
 * :mod:`.certification`: :func:`certify`, which runs it on every hypothesis of a
-  :class:`~cuikslam.results.Solution`, sharing one budget;
+  :class:`~cuikslam.outcome.solution.Solution`, sharing one budget;
 * :mod:`.fit`: :func:`fit_hypotheses`, the least-squares cost of each hypothesis' best
   world, which ranks equally parsimonious hypotheses;
 * :mod:`.hull`: :func:`inner_hull`, the same machinery used to measure the exact solution

@@ -6,7 +6,7 @@ It minimises in the world form (:mod:`._world`: poses and landmarks as parameter
 Jacobian, so an evaluation's cost grows with the log, not with its square) and verifies
 the model's parameters read off that world.
 :func:`~.certification.certify` runs that search on every hypothesis of a
-:class:`~cuikslam.results.Solution` and marks the proven ones.
+:class:`~cuikslam.outcome.solution.Solution` and marks the proven ones.
 
 The search has a budget: a deadline (checked at every evaluation of the residuals, so it
 stops within one least-squares step of it) and a work limit (``MAX_EVALUATIONS`` residual

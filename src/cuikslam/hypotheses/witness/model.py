@@ -130,7 +130,7 @@ class HypothesisModel(Starts, Residuals):
     """The parametrisation of a hypothesis and its checks (see the module docstring).
 
     Poses and landmarks are numbered in the order the kinematic graph uses (first
-    appearance in the log), so that arrays of a :class:`~cuikslam.results.Hypothesis` of a
+    appearance in the log), so that arrays of a :class:`~cuikslam.outcome.solution.Hypothesis` of a
     known-correspondence solve line up; mappings by id are accepted everywhere too.
     ``problems`` lists structural contradictions (a landmark of two classes, one landmark
     twice in a scan, an empty interval): a hypothesis with problems never gets a witness.
