@@ -63,7 +63,7 @@ class Hypothesis:
     """Least-squares cost of the world that best explains its readings: the sum of the
     squared distances of every measured value from its interval's centre, in half-widths
     (the objective of a least-squares back end with those as standard deviations), as far
-    as :func:`~cuikslam.hypotheses.witness.fit_hypotheses` got within its budget; NaN when
+    as :func:`~cuikslam.witness.fit_hypotheses` got within its budget; NaN when
     not computed. It ranks hypotheses that explain the log equally parsimoniously."""
 
     @property
@@ -151,7 +151,7 @@ class Solution:
     unreported: list[list[str]] = field(default_factory=list, repr=False)
     """Unknown correspondence: the assignments of survivors the search found but did not
     report in detail (the first ``MAX_UNREPORTED`` of them; never written to files), from
-    which :func:`~cuikslam.hypotheses.witness.fit_hypotheses` reports the best-fitting;
+    which :func:`~cuikslam.witness.fit_hypotheses` reports the best-fitting;
     empty once a search's ``rank`` used it (as in :func:`~cuikslam.solver.solve`)."""
 
     @property

@@ -13,16 +13,16 @@ import time
 import numpy as np
 
 from cuikslam.budget import Budget
-from cuikslam.hypotheses.witness.find import (
+from cuikslam.log.records import Log
+from cuikslam.outcome.solution import NOT_REFUTED, PROVEN, Hypothesis, Solution
+from cuikslam.witness.find import (
     MAX_EVALUATIONS,
     MAX_TOTAL_EVALUATIONS,
     WitnessSearch,
     WitnessStatistics,
 )
-from cuikslam.hypotheses.witness.model import HypothesisModel
-from cuikslam.hypotheses.witness.verify import verified_box
-from cuikslam.log.records import Log
-from cuikslam.outcome.solution import NOT_REFUTED, PROVEN, Hypothesis, Solution
+from cuikslam.witness.model import HypothesisModel
+from cuikslam.witness.verify import verified_box
 
 FIRST_QUOTA = 64
 """Residual evaluations each start may use in the first round of :func:`certify` when

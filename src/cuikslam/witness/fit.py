@@ -35,23 +35,23 @@ from collections.abc import Callable
 import numpy as np
 
 from cuikslam.budget import Budget, OutOfTime, blas_single_thread, expired
-from cuikslam.hypotheses.witness._dense import (
+from cuikslam.log.records import Log
+from cuikslam.outcome.naming import display_names, named_landmarks
+from cuikslam.outcome.solution import OUTLIER, Hypothesis, Solution
+from cuikslam.outliers import log_without_observations
+from cuikslam.witness._dense import (
     dense_least_squares,
     evaluation_cost,
     param_bounds,
     tr_solver_for,
 )
-from cuikslam.hypotheses.witness.find import (
+from cuikslam.witness.find import (
     CENTRE_TOLERANCE,
     WitnessStatistics,
     _Meter,
     _OutOfWork,
 )
-from cuikslam.hypotheses.witness.model import HypothesisModel
-from cuikslam.log.records import Log
-from cuikslam.outcome.naming import display_names, named_landmarks
-from cuikslam.outcome.solution import OUTLIER, Hypothesis, Solution
-from cuikslam.outliers import log_without_observations
+from cuikslam.witness.model import HypothesisModel
 
 __all__ = ["FIT_EVALUATIONS", "FIT_MAX_HYPOTHESES", "fit_cost", "fit_hypotheses"]
 

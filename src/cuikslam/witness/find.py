@@ -24,17 +24,17 @@ from typing import Any
 import numpy as np
 
 from cuikslam.budget import COSTS, Budget, OutOfTime, blas_single_thread, expired, spend
-from cuikslam.hypotheses.witness._levenberg import bounded_least_squares
-from cuikslam.hypotheses.witness._numeric import finite, midpoint
-from cuikslam.hypotheses.witness._world import WorldForm
-from cuikslam.hypotheses.witness.model import (
+from cuikslam.log.records import Log
+from cuikslam.witness._levenberg import bounded_least_squares
+from cuikslam.witness._numeric import finite, midpoint
+from cuikslam.witness._world import WorldForm
+from cuikslam.witness.model import (
     HypothesisModel,
     LandmarkBoxes,
     PoseBoxes,
     WitnessPoint,
 )
-from cuikslam.hypotheses.witness.verify import verified_box
-from cuikslam.log.records import Log
+from cuikslam.witness.verify import verified_box
 
 _HOPELESS = 0.5
 """A hinge residual (in half-widths) beyond which aiming closer to the bounds is not tried."""

@@ -49,14 +49,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from cuikslam.graph.variables import length_bounds, offset_key
-from cuikslam.hypotheses.witness._kinematics import Tree, kinematics, relative_values
-from cuikslam.hypotheses.witness._numeric import finite, half_width, midpoint, wrap_near
-from cuikslam.hypotheses.witness._residuals import Residuals
-from cuikslam.hypotheses.witness._sensor import SENSOR_MARGIN as SENSOR_MARGIN
-from cuikslam.hypotheses.witness._sensor import distance as _distance
-from cuikslam.hypotheses.witness._starts import LandmarkBoxes as LandmarkBoxes
-from cuikslam.hypotheses.witness._starts import PoseBoxes as PoseBoxes
-from cuikslam.hypotheses.witness._starts import Starts
 from cuikslam.log.records import (
     LandmarkPrior,
     Log,
@@ -65,6 +57,14 @@ from cuikslam.log.records import (
     PosePrior,
     RelativePose,
 )
+from cuikslam.witness._kinematics import Tree, kinematics, relative_values
+from cuikslam.witness._numeric import finite, half_width, midpoint, wrap_near
+from cuikslam.witness._residuals import Residuals
+from cuikslam.witness._sensor import SENSOR_MARGIN as SENSOR_MARGIN
+from cuikslam.witness._sensor import distance as _distance
+from cuikslam.witness._starts import LandmarkBoxes as LandmarkBoxes
+from cuikslam.witness._starts import PoseBoxes as PoseBoxes
+from cuikslam.witness._starts import Starts
 
 AIM_FRACTION = 0.1
 """The optimiser aims this fraction of each interval's half-width inside it."""
