@@ -8,6 +8,6 @@
 * :mod:`.summary`: what the survivors agree on (:func:`~.summary.summarize`) and its JSON.
 
 The search (:mod:`cuikslam.hypotheses`) and the certification (:mod:`cuikslam.witness`)
-build these; the presentation layer (:mod:`cuikslam.results`: files, tables, figures, the
+build these; the presentation layer (the ``results`` package: files, tables, figures, the
 truth verdict) and the command line read them. Nothing here imports either.
 """

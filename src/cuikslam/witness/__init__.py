@@ -10,7 +10,7 @@ It certifies the hypotheses of any solve, known correspondence too, so it is a l
 its own: it runs after the search (:mod:`cuikslam.hypotheses`, whose former subpackage
 ``cuikslam.hypotheses.witness`` re-exports it) and imports nothing of it; it reads and
 marks the types of :mod:`cuikslam.outcome`, and never imports the presentation layer
-(:mod:`cuikslam.results`).
+(the ``results`` package: files, tables, figures).
 
 The stages, one module each:
 
