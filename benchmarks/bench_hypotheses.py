@@ -56,10 +56,10 @@ def _run_world(
 ) -> None:  # fmt: skip
     from cuikslam.budget import deadline_after
     from cuikslam.hypotheses import solve_unknown
-    from cuikslam.hypotheses.witness import certify, fit_hypotheses
     from cuikslam.narrowing.consistency import warm_up_lp
     from cuikslam.results.association import rank_of
     from cuikslam.simulate import simulate_random_world
+    from cuikslam.witness import certify, fit_hypotheses
 
     log, truth = simulate_random_world(
         seed=seed, n_poses=n_poses, n_landmarks=n_landmarks, classes=classes, unknown=True,

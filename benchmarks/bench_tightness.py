@@ -2,10 +2,10 @@
 
 For the seed paper's experiment (noise seeds 0-4, known correspondence) the exact hull of
 every pose coordinate (x, y, theta) and landmark coordinate is estimated from INSIDE with
-:func:`cuikslam.hypotheses.witness.inner_hull`: each coordinate is minimised and maximised
+:func:`cuikslam.witness.inner_hull`: each coordinate is minimised and maximised
 (SLSQP) over parameter vectors that satisfy every measured interval, from truth-free
 starts (the witness found from the box centres, and random points of the boxes), and only
-points that :func:`~cuikslam.hypotheses.witness.verify_witness` proves to be solutions
+points that :func:`~cuikslam.witness.verify_witness` proves to be solutions
 count. So ``inner width <= exact width <= box width`` and
 
     ratio = box width / inner width   (>= 1; 1 means the box is the exact hull)
@@ -50,10 +50,10 @@ from typing import Any  # noqa: E402
 import numpy as np  # noqa: E402
 
 from cuikslam._atomic import atomic_write_text  # noqa: E402
-from cuikslam.hypotheses.witness import inner_hull  # noqa: E402
 from cuikslam.log.records import Log  # noqa: E402
 from cuikslam.simulate import simulate_paper  # noqa: E402
 from cuikslam.solver import solve  # noqa: E402
+from cuikslam.witness import inner_hull  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 CACHE = ROOT / "benchmarks" / "results" / "inner_hull_paper.json"

@@ -6,7 +6,7 @@
 
 Each case is solved without the witness search (``certify_limit=0``: known correspondence
 at level ``hull``, the correspondence search at its default level, or at ``hull`` for the
-dense worlds), then :func:`cuikslam.hypotheses.witness.certify` decides its hypotheses
+dense worlds), then :func:`cuikslam.witness.certify` decides its hypotheses
 with the work the solve's default budget (:func:`cuikslam.budget.work_budget_for`) has
 left, as ``cuikslam solve`` gives it (``--seconds`` adds a wall-clock cap, for versions
 whose search is slow). Reported per case: hypotheses proven / undecided, residual
@@ -120,8 +120,8 @@ def run_case(name: str, seconds: float | None) -> dict | None:
     """Solve case ``name`` without witnesses, then certify its hypotheses with what the
     default budget has left; the measurements."""
     from cuikslam.budget import Budget, work_budget_for
-    from cuikslam.hypotheses.witness import certify
     from cuikslam.solver import solve
+    from cuikslam.witness import certify
 
     made = CASES[name]()
     if made is None:

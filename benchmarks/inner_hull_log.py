@@ -1,7 +1,7 @@
 """How far a known-correspondence log's boxes are from its exact solution set, from inside.
 
 Solves LOG at ``lp`` (no time budget), then computes
-:func:`cuikslam.hypotheses.witness.inner_hull`: the hull of solution points each verified in
+:func:`cuikslam.witness.inner_hull`: the hull of solution points each verified in
 interval arithmetic, so every inner interval lies inside the exact hull of its coordinate.
 Prints the median over the poses of the wider of the x and y widths and of the heading width,
 for the inner hull and for the ``lp`` boxes, their per-pose median ratio, and how many poses
@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from cuikslam import read_log_file, solve
-from cuikslam.hypotheses.witness import inner_hull
+from cuikslam.witness import inner_hull
 
 
 def _medians(boxes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

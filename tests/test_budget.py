@@ -31,7 +31,6 @@ from cuikslam.budget import (
 )
 from cuikslam.cli.main import build_parser
 from cuikslam.graph import KinematicGraph
-from cuikslam.hypotheses.witness import certify
 from cuikslam.log import read_log_file
 from cuikslam.narrowing import consistency, lp_bounds, propagate, sweeps
 from cuikslam.narrowing.consistency import BUDGET_SUFFIX, StrengthenReport, strengthen
@@ -40,6 +39,7 @@ from cuikslam.results.io import solution_to_json
 from cuikslam.results.solution import NOT_REFUTED, PROVEN, check_truth
 from cuikslam.simulate import simulate_paper
 from cuikslam.solver import solve
+from cuikslam.witness import certify
 
 REPRO = Path(__file__).parent / "data" / "repro"
 

@@ -121,7 +121,7 @@ def test_the_best_ranked_and_the_stronger_level_match(client) -> None:
     with a ranking (``rank``: here the fit, with its promotion of unreported survivors)."""
     from cuikslam.hypotheses.distributed import search_distributed
     from cuikslam.hypotheses.labelled import solve_labelled
-    from cuikslam.hypotheses.witness import fit_hypotheses
+    from cuikslam.witness import fit_hypotheses
 
     log = ambiguous_log(2)
     known = functools.partial(solve_labelled, log)

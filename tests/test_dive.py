@@ -23,12 +23,12 @@ from cuikslam.hypotheses.expansions import Expansions
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.tree import SearchLimit
-from cuikslam.hypotheses.witness import certify
 from cuikslam.results.association import partition
 from cuikslam.results.io import solution_to_json
 from cuikslam.results.solution import PROVEN, Solution
 from cuikslam.simulate import simulate_paper, simulate_random_world
 from cuikslam.solver import solve
+from cuikslam.witness import certify
 from worlds import SEARCHED, SMALL, World, worlds
 
 HEALTH = [HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large]

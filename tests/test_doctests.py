@@ -30,7 +30,7 @@ MODULES = _modules_with_examples()
 
 
 def test_some_modules_have_examples() -> None:
-    assert "cuikslam.interval.ops" in MODULES and "cuikslam.results.summary" in MODULES
+    assert "cuikslam.interval.ops" in MODULES and "cuikslam.outcome.summary" in MODULES
     assert "cuikslam" in MODULES
 
 

@@ -1,5 +1,5 @@
 """The least-squares fit that ranks equally parsimonious hypotheses
-(:mod:`cuikslam.hypotheses.witness.fit`): it follows the readings, is written and read back,
+(:mod:`cuikslam.witness.fit`): it follows the readings, is written and read back,
 and a spent budget leaves the order to box size and says so."""
 
 from __future__ import annotations
@@ -13,13 +13,13 @@ import pytest
 from cuikslam.budget import Budget
 from cuikslam.errors import InputFileError
 from cuikslam.hypotheses import solve_unknown
-from cuikslam.hypotheses.witness import HypothesisModel, fit_hypotheses
-from cuikslam.hypotheses.witness.fit import fit_cost
 from cuikslam.log.reader import parse_log_lines
 from cuikslam.outliers import log_without_observations
 from cuikslam.results.io import read_result_file, write_result_file
 from cuikslam.results.solution import OUTLIER, PROVEN, Hypothesis
 from cuikslam.solver import solve
+from cuikslam.witness import HypothesisModel, fit_hypotheses
+from cuikslam.witness.fit import fit_cost
 
 # two surveyed doors 0.3 m apart, 2 m ahead of a robot at the origin; one door reading
 # whose intervals hold both

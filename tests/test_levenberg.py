@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import lsq_linear
 
-from cuikslam.hypotheses.witness._levenberg import bounded_least_squares
+from cuikslam.witness._levenberg import bounded_least_squares
 
 
 class _Counted:

@@ -13,14 +13,6 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from _exact import angle_inside
-from cuikslam.hypotheses.witness import (
-    HypothesisModel,
-    certify,
-    find_witness,
-    inner_hull,
-    verify_witness,
-)
-from cuikslam.hypotheses.witness.certification import FIRST_QUOTA
 from cuikslam.log.reader import parse_log_lines
 from cuikslam.log.records import (
     LandmarkPrior,
@@ -34,6 +26,14 @@ from cuikslam.log.records import (
 from cuikslam.results.solution import NOT_REFUTED, PROVEN, check_truth
 from cuikslam.simulate import simulate_paper, simulate_random_world
 from cuikslam.solver import solve
+from cuikslam.witness import (
+    HypothesisModel,
+    certify,
+    find_witness,
+    inner_hull,
+    verify_witness,
+)
+from cuikslam.witness.certification import FIRST_QUOTA
 
 
 def true_params(log: Log, truth) -> np.ndarray:
@@ -455,7 +455,7 @@ def test_sensor_jacobian_matches_finite_differences(nearest_margin: float | None
 def test_sensor_scales_keep_which_pairs_are_violated() -> None:
     """The optimisers see sensor violations in the ranges' and bearings' half-widths: the
     same pairs violated as in metres and radians, each by its amount over its scale."""
-    from cuikslam.hypotheses.witness._sensor import sensor_terms
+    from cuikslam.witness._sensor import sensor_terms
 
     log, truth = _dense_unknown_world()
     model = HypothesisModel(log, truth.assignment)
@@ -539,8 +539,8 @@ def test_true_hypothesis_of_a_dense_100_pose_world_is_proven() -> None:
     the witness search proves the true hypothesis within a work limit, and its witness
     world is verified again independently."""
     from cuikslam.hypotheses import solve_unknown
-    from cuikslam.hypotheses.witness.find import find_point
     from cuikslam.results.association import rank_of
+    from cuikslam.witness.find import find_point
 
     log, truth = simulate_random_world(
         seed=3, n_poses=100, n_landmarks=16, classes=("door", "corridor"), unknown=True,

@@ -30,8 +30,6 @@ from hypothesis import strategies as st
 from _exact import MP, TWO_PI, mpf
 from cuikslam.cli.main import main
 from cuikslam.datasets import data_dir
-from cuikslam.hypotheses.witness import HypothesisModel, find_witness, verify_witness
-from cuikslam.hypotheses.witness.verify import verified_box
 from cuikslam.log import read_log_file
 from cuikslam.log.records import (
     LandmarkPrior,
@@ -44,6 +42,8 @@ from cuikslam.log.records import (
 )
 from cuikslam.results.solution import PROVEN
 from cuikslam.solver import solve
+from cuikslam.witness import HypothesisModel, find_witness, verify_witness
+from cuikslam.witness.verify import verified_box
 from worlds import down, up
 
 MPPose = tuple[mpmath.mpf, mpmath.mpf, mpmath.mpf]

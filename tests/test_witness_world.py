@@ -1,4 +1,4 @@
-"""The witness search's world form (``hypotheses/witness/_world.py``) and the long logs it
+"""The witness search's world form (``witness/_world.py``) and the long logs it
 lets the search prove: the form evaluates the model's own checks, maps its points back to
 the model's parameters, and its Jacobian is right; a long labelled world is proven within
 the default budget; an impossible hypothesis never is, and a proven borderline log's
@@ -14,12 +14,12 @@ import pytest
 from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
 
-from cuikslam.hypotheses.witness import HypothesisModel, _world, certify
-from cuikslam.hypotheses.witness._world import WorldForm
 from cuikslam.log.records import Log, Observation
 from cuikslam.results.solution import NOT_REFUTED, PROVEN
 from cuikslam.simulate import simulate_random_world
 from cuikslam.solver import solve
+from cuikslam.witness import HypothesisModel, _world, certify
+from cuikslam.witness._world import WorldForm
 from test_witness import SLACKS, closed_paper_loop, mp_consistent, true_params
 from test_witness_motion import _true_params, motion_world
 

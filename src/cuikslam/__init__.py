@@ -65,13 +65,13 @@ _HOMES: dict[str, str] = {
     "Session": "cuikslam.online.session",
     "PoseEstimate": "cuikslam.online.estimate",
     # results
-    "Solution": "cuikslam.results.solution",
-    "Hypothesis": "cuikslam.results.solution",
-    "check_truth": "cuikslam.results.solution",
+    "Solution": "cuikslam.outcome.solution",
+    "Hypothesis": "cuikslam.outcome.solution",
+    "check_truth": "cuikslam.outcome.solution",
     "check_estimate": "cuikslam.interop.check",
     "read_result_file": "cuikslam.results.io",
     "write_result_file": "cuikslam.results.io",
-    "summarize": "cuikslam.results.summary",
+    "summarize": "cuikslam.outcome.summary",
     "evaluate": "cuikslam.results.evaluate",
     "Evaluation": "cuikslam.results.evaluate",
     # simulation

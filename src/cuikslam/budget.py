@@ -102,10 +102,10 @@ its operators); a multiply-add of the dense LP kernel (:mod:`cuikslam.narrowing.
 its inverse of the active constraints, ``2 n**3``, and each pivot's update, ``2 n**2``
 plus the matrix's entries, for n columns), whose cost grows faster than its LP's size on
 the windows of a long log; the witness search's evaluation in its sparse world form
-(:mod:`cuikslam.hypotheses.witness._world`): a fixed cost, and one per entry of its
+(:mod:`cuikslam.witness._world`): a fixed cost, and one per entry of its
 Jacobian (computed, multiplied into the normal equations) and per (pose, landmark) pair
 of the sensor's negative information, and a multiply-add of each sparse factorisation of
-its normal equations (:func:`cuikslam.hypotheses.witness._levenberg.factor_work`, whose
+its normal equations (:func:`cuikslam.witness._levenberg.factor_work`, whose
 fill grows faster than the log); and its rigorous verification: a fixed cost, and one per
 interval operation. Measured so that a unit is about a
 microsecond of this machine in each stage (``benchmarks/bench_budget.py``,

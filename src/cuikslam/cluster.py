@@ -17,7 +17,7 @@ from cuikslam.options import SolveOptions
 
 if TYPE_CHECKING:
     from cuikslam.log.records import Log
-    from cuikslam.results.solution import Solution
+    from cuikslam.outcome.solution import Solution
 
 __all__ = ["INSTALL_HINT", "DaskMissingError", "dask_client", "solve_batch"]
 

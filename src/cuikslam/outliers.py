@@ -27,7 +27,7 @@ from cuikslam.log.records import (
 )
 from cuikslam.messages import Message
 from cuikslam.narrowing.outliers import NO_LIMIT, OutlierScope, RelaxedReport
-from cuikslam.results.solution import Hypothesis, Solution
+from cuikslam.outcome.solution import Hypothesis, Solution
 
 __all__ = [
     "LISTED",
@@ -240,7 +240,7 @@ def certify_without_outliers(
     A verified point that satisfies every constraint but those of the proven outliers
     (fewer than declared, or the solve would have said so) is a world that meets the
     declaration: the hypothesis becomes *proven consistent*, its witness that point. The
-    witness search (``certify``, :func:`cuikslam.hypotheses.witness.certify`) runs on the
+    witness search (``certify``, :func:`cuikslam.witness.certify`) runs on the
     log without the proven outliers; an unproven outlier left in it makes the search fail,
     never a wrong proof. Not tried when a landmark is seen only by proven outliers, nor when
     the proven outliers and the hypothesis' own together break the declaration (in all or in

@@ -22,7 +22,6 @@ from cuikslam.hypotheses.labelled import (
     solve_labelled,
 )
 from cuikslam.hypotheses.search import solve_unknown
-from cuikslam.hypotheses.witness import certify, fit_hypotheses
 from cuikslam.log.reader import reject_reserved_landmark_id
 from cuikslam.log.records import Log
 from cuikslam.messages import Message
@@ -30,6 +29,7 @@ from cuikslam.narrowing.consistency import StrengthenReport, strengthen
 from cuikslam.narrowing.outliers import RelaxedReport, narrow_with_outliers
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
 from cuikslam.options import Level, SolveOptions
+from cuikslam.outcome.solution import Solution
 from cuikslam.outliers import (
     certify_without_outliers,
     hypothesis_outlier_messages,
@@ -37,7 +37,7 @@ from cuikslam.outliers import (
     outlier_scope,
     outliers_to_json,
 )
-from cuikslam.results.solution import Solution
+from cuikslam.witness import certify, fit_hypotheses
 
 __all__ = ["budget_message", "hypothesis_from_graph", "solve"]
 
@@ -46,7 +46,7 @@ ProgressCallback = Callable[[int, int], None]
 
 CERTIFY_MAX_POSES = 2000
 """No witness search beyond this many poses. The search minimises in a sparse form
-(:mod:`cuikslam.hypotheses.witness._world`), whose evaluations grow with the log (a
+(:mod:`cuikslam.witness._world`), whose evaluations grow with the log (a
 200-pose world proven in 0.2 s, 1,000 poses in 0.7 s, 2,000 in 2.7 s of CPU, 250 MB), but
 a log with loop-closing odometry polishes its closures and picks its verification's pivots
 on the model's dense Jacobian (frames x parameters: 0.2 GB at 2,000 poses). Within the cap
@@ -155,7 +155,7 @@ def solve(
     milliseconds); the stronger level may use its share of what is left, and the witness
     search the rest. With unknown correspondence the search gets its share of the budget;
     when it ends, the least-squares fit that ranks its survivors
-    (:func:`~cuikslam.hypotheses.witness.fit_hypotheses`) may use its share of what is
+    (:func:`~cuikslam.witness.fit_hypotheses`) may use its share of what is
     left, and the stronger level then narrows them in that order, within the search's
     share. The shares are :data:`cuikslam.budget.SCHEDULE`'s. A stage that runs out
     stops soundly and says so: the level actually reached (e.g. ``"lp (budget)"``, see

@@ -183,8 +183,8 @@ def write_log_and_truth(log, truth, out: Path, truth_out: Path, *, quiet: bool) 
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
+    from cuikslam.outcome.solution import no_hypothesis
     from cuikslam.results.io import read_result_file
-    from cuikslam.results.solution import no_hypothesis
     from cuikslam.simulate.truth import check_truth_fits, read_truth_file
 
     # Inputs and the output folder first: a bad file fails before matplotlib is imported.

@@ -16,11 +16,11 @@ from cuikslam.cli._messages import worded
 from cuikslam.errors import InputFileError
 from cuikslam.log.reader import read_log_file
 from cuikslam.log.records import Log
+from cuikslam.outcome.solution import no_hypothesis
 from cuikslam.results.association import named_landmarks, true_outliers
 from cuikslam.results.evaluate import Evaluation, evaluate, evaluation_to_json
 from cuikslam.results.io import read_result_file
 from cuikslam.results.measurement_check import check_log
-from cuikslam.results.solution import no_hypothesis
 from cuikslam.simulate.truth import check_truth_fits, read_truth_file
 
 __all__ = ["print_evaluation", "run_evaluate"]

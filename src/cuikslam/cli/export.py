@@ -83,7 +83,7 @@ def _is_truth(path: str) -> bool:
 
 def _cmd_export(args: argparse.Namespace) -> int:
     from cuikslam.interop.estimate import hypothesis_estimate, truth_estimate
-    from cuikslam.results.solution import no_hypothesis
+    from cuikslam.outcome.solution import no_hypothesis
 
     check_output_path(args.output)
     if _is_truth(args.input):

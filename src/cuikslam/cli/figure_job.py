@@ -29,7 +29,7 @@ from cuikslam.cli._common import CommandError, write_output
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
-    from cuikslam.results.solution import Solution
+    from cuikslam.outcome.solution import Solution
     from cuikslam.simulate.truth import GroundTruth
 
 __all__ = ["FigureJob", "spare_core", "start_figure"]

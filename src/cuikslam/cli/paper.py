@@ -12,9 +12,9 @@ from cuikslam.cli._messages import worded
 from cuikslam.cli.figure_job import start_figure
 from cuikslam.cli.warm_up import note_compiling
 from cuikslam.options import SolveOptions
+from cuikslam.outcome.solution import PROVEN, Solution
 from cuikslam.results.association import truth_verdict
 from cuikslam.results.io import write_result_file
-from cuikslam.results.solution import PROVEN, Solution
 from cuikslam.results.table import comparison_table, hypothesis_rows, hypothesis_table
 from cuikslam.simulate.paper import PAPER_SURVIVORS, paper_table1, simulate_paper
 from cuikslam.simulate.truth import GroundTruth

@@ -20,11 +20,11 @@ from cuikslam.cli._messages import worded
 from cuikslam.cli.warm_up import note_compiling
 from cuikslam.log.reader import read_log_file
 from cuikslam.options import SolveOptions
+from cuikslam.outcome.solution import Solution
 from cuikslam.results.association import named_landmarks, true_outliers, truth_verdict
 from cuikslam.results.io import write_result_csv, write_result_file
 from cuikslam.results.measurement_check import check_log
 from cuikslam.results.overview import envelope_lines, overview_lines
-from cuikslam.results.solution import Solution
 from cuikslam.results.table import hypothesis_table, summary_table
 from cuikslam.simulate.truth import GroundTruth, check_truth_fits, read_truth_file
 

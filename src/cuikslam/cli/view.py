@@ -63,10 +63,10 @@ def _cmd_view(args: argparse.Namespace) -> int:
     except BokehMissingError as err:
         raise CommandError(str(err)) from None
 
+    from cuikslam.outcome.solution import no_hypothesis
     from cuikslam.results.figures.geometry import MAX_POSE_BOXES
     from cuikslam.results.figures.page import write_page
     from cuikslam.results.io import read_result_file
-    from cuikslam.results.solution import no_hypothesis
     from cuikslam.simulate.truth import check_truth_fits, read_truth_file
 
     solution = read_result_file(args.result)

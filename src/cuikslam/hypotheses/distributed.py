@@ -52,7 +52,7 @@ from cuikslam.hypotheses.tally import Tally
 from cuikslam.hypotheses.tree import Node, SearchLimit, SearchStatistics
 from cuikslam.log.records import Log
 from cuikslam.options import SolveOptions
-from cuikslam.results.solution import Hypothesis, Solution
+from cuikslam.outcome.solution import Hypothesis, Solution
 
 __all__ = [
     "SubtreeResult",

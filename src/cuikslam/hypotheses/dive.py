@@ -28,7 +28,7 @@ from cuikslam.budget import COSTS, spend
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.survivors import hypothesis_of
 from cuikslam.hypotheses.tree import Node, SearchLimit
-from cuikslam.results.solution import PROVEN, Hypothesis, Solution
+from cuikslam.outcome.solution import PROVEN, Hypothesis, Solution
 
 __all__ = ["MAX_DISCREPANCIES", "Dive", "dive", "keep_proof", "prove_leaf"]
 

@@ -21,7 +21,7 @@ import numpy as np
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.tree import Node
-from cuikslam.results.solution import Envelope as EnvelopeBoxes
+from cuikslam.outcome.solution import Envelope as EnvelopeBoxes
 
 __all__ = ["Envelope"]
 

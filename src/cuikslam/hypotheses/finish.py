@@ -30,9 +30,9 @@ from cuikslam.hypotheses.tree import Node
 from cuikslam.log.records import Log
 from cuikslam.messages import Message
 from cuikslam.options import SolveOptions
+from cuikslam.outcome.solution import Solution
+from cuikslam.outcome.summary import describe, summarize, summary_to_json
 from cuikslam.outliers import search_outliers_json
-from cuikslam.results.solution import Solution
-from cuikslam.results.summary import describe, summarize, summary_to_json
 
 __all__ = ["SHOWN_PLACES", "Rank", "branch_places", "finish_search"]
 

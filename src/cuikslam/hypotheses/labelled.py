@@ -24,8 +24,8 @@ from cuikslam.log.records import Log, Observation
 from cuikslam.narrowing.consistency import StrengthenReport, strengthen
 from cuikslam.narrowing.propagation import DEFAULT_ROUNDS, Arrays, propagate
 from cuikslam.options import Level
+from cuikslam.outcome.solution import OUTLIER, Hypothesis
 from cuikslam.outliers import log_without_observations
-from cuikslam.results.solution import OUTLIER, Hypothesis
 
 __all__ = ["has_labelled_logs", "hypothesis_from_graph", "labelled_log", "solve_labelled"]
 

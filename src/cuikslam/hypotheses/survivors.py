@@ -1,5 +1,5 @@
 """After the search: its survivors bisected (the reserve taking the place of those
-refuted), each as the user sees it (a :class:`~cuikslam.results.solution.Hypothesis`),
+refuted), each as the user sees it (a :class:`~cuikslam.outcome.solution.Hypothesis`),
 and the stronger consistency level on the report, in rank order."""
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from cuikslam.hypotheses.tally import Tally
 from cuikslam.hypotheses.tree import Node
 from cuikslam.messages import Message
 from cuikslam.options import Level
-from cuikslam.results.association import anonymous_names, partition
-from cuikslam.results.solution import OUTLIER as OUTLIER_MARK
-from cuikslam.results.solution import Hypothesis
+from cuikslam.outcome.naming import anonymous_names, partition
+from cuikslam.outcome.solution import OUTLIER as OUTLIER_MARK
+from cuikslam.outcome.solution import Hypothesis
 
 __all__ = [
     "Entry",

@@ -12,8 +12,8 @@ from cuikslam.hypotheses.envelope import Envelope
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.tree import Node
-from cuikslam.results.association import new_mark, partition
-from cuikslam.results.solution import OUTLIER as OUTLIER_MARK
+from cuikslam.outcome.naming import new_mark, partition
+from cuikslam.outcome.solution import OUTLIER as OUTLIER_MARK
 
 __all__ = ["MAX_TALLIED", "Tally"]
 

@@ -33,7 +33,7 @@ import numpy as np
 
 from cuikslam.interop.estimate import PointEstimate, landmark_key, pose_key
 from cuikslam.interval.angles import angle_excess, angle_in
-from cuikslam.results.solution import Hypothesis, Solution
+from cuikslam.outcome.solution import Hypothesis, Solution
 
 __all__ = ["EstimateCheck", "Outside", "check_estimate"]
 

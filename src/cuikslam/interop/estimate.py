@@ -24,7 +24,7 @@ import numpy as np
 from cuikslam.interval.midpoints import midpoint
 
 if TYPE_CHECKING:
-    from cuikslam.results.solution import Hypothesis
+    from cuikslam.outcome.solution import Hypothesis
     from cuikslam.simulate.truth import GroundTruth
 
 __all__ = [

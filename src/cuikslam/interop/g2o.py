@@ -56,7 +56,7 @@ from cuikslam.log.records import (
     RelativePose,
     SensorModel,
 )
-from cuikslam.results.solution import OUTLIER
+from cuikslam.outcome.solution import OUTLIER
 
 __all__ = ["G2oGraph", "g2o_lines", "read_g2o_file", "write_g2o_file"]
 

@@ -57,7 +57,7 @@ from cuikslam.log.records import (
     PosePrior,
     RelativePose,
 )
-from cuikslam.results.solution import OUTLIER, Hypothesis
+from cuikslam.outcome.solution import OUTLIER, Hypothesis
 
 try:
     import gtsam

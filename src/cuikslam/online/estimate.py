@@ -8,8 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from cuikslam.results.io import bounds_to_json
-from cuikslam.results.solution import Hypothesis, TruthReport, check_truth
+from cuikslam.outcome.solution import Hypothesis, TruthReport, bounds_to_json, check_truth
 from cuikslam.simulate.truth import GroundTruth
 
 __all__ = ["PoseEstimate", "check_estimates"]

@@ -3,7 +3,9 @@
 A hypothesis assigns a landmark to every observation. Two assignments are the same
 hypothesis when they group the observations alike: landmarks the log names keep their
 ids, the others are known only by the observations that see them. :func:`partition`
-is that canonical form; :func:`rank_of` finds the hypothesis whose partition is the true
+is that canonical form (it lives below the search, in :mod:`cuikslam.outcome.naming`,
+with the names a solve gives a hypothesis' landmarks; this module re-exports them);
+:func:`rank_of` finds the hypothesis whose partition is the true
 one, and :func:`truth_verdict` says whether a result keeps the guarantee against a ground
 truth (what ``cuikslam solve --truth`` and ``cuikslam paper`` print).
 
@@ -17,13 +19,19 @@ True
 
 from __future__ import annotations
 
-from collections.abc import Collection, Iterator, Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass, field
 
 from cuikslam.log.records import Log
 from cuikslam.messages import Message
-from cuikslam.results.measurement_check import Outside
-from cuikslam.results.solution import (
+from cuikslam.outcome.naming import (
+    anonymous_names,
+    display_names,
+    named_landmarks,
+    new_mark,
+    partition,
+)
+from cuikslam.outcome.solution import (
     OUTLIER,
     Hypothesis,
     Solution,
@@ -31,13 +39,17 @@ from cuikslam.results.solution import (
     check_envelope,
     check_truth,
 )
-from cuikslam.results.summary import summary_holds
+from cuikslam.outcome.summary import summary_holds
+from cuikslam.results.measurement_check import Outside
 from cuikslam.simulate.truth import GroundTruth
 
 __all__ = [
     "TruthVerdict",
+    "anonymous_names",
+    "display_names",
     "envelope_report",
     "named_landmarks",
+    "new_mark",
     "paired_landmarks",
     "partition",
     "rank_of",
@@ -48,73 +60,6 @@ __all__ = [
 
 MISSES_SHOWN = 20
 """Boxes that miss the truth listed in a verdict at most."""
-
-
-def partition(assignment: Sequence[str], named: Collection[str] = frozenset()) -> list[int | str]:
-    """The assignment up to renaming: a named landmark keeps its id, the others become
-    the index of their first appearance among the unnamed ones.
-
-    Parameters
-    ----------
-    assignment : sequence of str
-        The landmark of each observation, in log order.
-    named : collection of str
-        Landmark ids the log itself gives (see :func:`named_landmarks`).
-
-    Returns
-    -------
-    list of int or str
-        Equal for two assignments exactly when they are the same hypothesis.
-    """
-    first: dict[str, int] = {}
-    return [
-        a if a in named or a == OUTLIER else first.setdefault(a, len(first)) for a in assignment
-    ]
-
-
-def new_mark(named: Collection[str]) -> str:
-    """The prefix of the landmarks a hypothesis adds: ``"+"``, longer while one of the log's
-    ids (``named``) starts with it.
-
-    >>> new_mark({"A"}), new_mark({"+1", "B"})
-    ('+', '++')
-    """
-    mark = "+"
-    while any(name.startswith(mark) for name in named):
-        mark += "+"
-    return mark
-
-
-def anonymous_names(named: Collection[str]) -> Iterator[str]:
-    """Names for a hypothesis' unnamed landmarks, in order of first appearance: ``+1``,
-    ``+2``, ... (the k-th landmark the hypothesis adds, as ``docs/result-format.md`` and
-    the ``--survivors`` file name it), never one of the log's ids (``named``: the prefix
-    is ``++`` when a log id starts with ``+``, see :func:`new_mark`).
-
-    >>> from itertools import islice
-    >>> list(islice(anonymous_names({"A", "N2"}), 3))
-    ['+1', '+2', '+3']
-    """
-    mark = new_mark(named)
-    count = 0
-    while True:
-        count += 1
-        yield f"{mark}{count}"
-
-
-def display_names(assignment: Sequence[str], named: Collection[str]) -> list[str]:
-    """The assignment with its unnamed landmarks named as a solve reports them
-    (:func:`anonymous_names`).
-
-    >>> display_names(["+2", "A", "+1", "+2", "outlier"], {"A", "N1"})
-    ['+1', 'A', '+2', '+1', 'outlier']
-    """
-    fresh = anonymous_names(named)
-    names: dict[str, str] = {}
-    for a in assignment:
-        if a not in named and a != OUTLIER and a not in names:
-            names[a] = next(fresh)
-    return [names.get(a, a) for a in assignment]
 
 
 def paired_landmarks(hypothesis: Hypothesis, truth: GroundTruth) -> dict[str, list[str]]:
@@ -169,11 +114,6 @@ def paired_landmarks(hypothesis: Hypothesis, truth: GroundTruth) -> dict[str, li
         for lid in hypothesis.landmark_ids
         if lid in pairs
     }
-
-
-def named_landmarks(log: Log) -> set[str]:
-    """Landmark ids the log itself gives (named sightings and landmark priors)."""
-    return {r.landmark for r in log.records if getattr(r, "landmark", None) is not None}
 
 
 def true_outliers(log: Log, found: Outside) -> tuple[list[int], list[int]]:

@@ -1,10 +1,10 @@
 """How a solve did against the ground truth: containment, box widths, association.
 
-:func:`evaluate` compares a :class:`~cuikslam.results.solution.Solution` with a
+:func:`evaluate` compares a :class:`~cuikslam.outcome.solution.Solution` with a
 :class:`~cuikslam.simulate.truth.GroundTruth`:
 
 * **Containment.** The share of poses and landmarks whose truth lies inside their box,
-  compared exactly as :func:`~cuikslam.results.solution.check_truth` does (true values
+  compared exactly as :func:`~cuikslam.outcome.solution.check_truth` does (true values
   as exact rationals, headings modulo an exact 2π). Truth files of real runs may cover
   only some poses (Vicon gaps): only poses with a truth are counted, and the poses
   without one are counted apart.
@@ -31,9 +31,9 @@ from typing import Any
 
 import numpy as np
 
+from cuikslam.outcome.solution import OUTLIER, Hypothesis, Solution, _check_pose, _check_xy
+from cuikslam.outcome.summary import _follows
 from cuikslam.results.association import paired_landmarks, rank_of
-from cuikslam.results.solution import OUTLIER, Hypothesis, Solution, _check_pose, _check_xy
-from cuikslam.results.summary import _follows
 from cuikslam.simulate.truth import GroundTruth
 
 __all__ = ["Evaluation", "WidthStats", "evaluate", "evaluation_to_json"]

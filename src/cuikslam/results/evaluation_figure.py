@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cuikslam.outcome.solution import Solution
 from cuikslam.results.evaluate import Evaluation
 from cuikslam.results.figures import class_color_map, plot_widths_on_axes
 from cuikslam.results.figures.artists import (
@@ -15,7 +16,6 @@ from cuikslam.results.figures.artists import (
     _place_legend,
 )
 from cuikslam.results.figures.figure import _Panel, _solution_extent
-from cuikslam.results.solution import Solution
 from cuikslam.simulate.truth import GroundTruth
 
 if TYPE_CHECKING:

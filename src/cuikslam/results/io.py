@@ -26,7 +26,7 @@ from cuikslam import __version__
 from cuikslam._atomic import atomic_write_text
 from cuikslam._json import dumps
 from cuikslam.errors import InputFileError
-from cuikslam.results.solution import Envelope, Hypothesis, Solution
+from cuikslam.outcome.solution import Envelope, Hypothesis, Solution, bounds_to_json
 
 __all__ = [
     "bounds_to_json",
@@ -35,17 +35,6 @@ __all__ = [
     "write_result_csv",
     "write_result_file",
 ]
-
-
-def bounds_to_json(boxes: np.ndarray) -> list:
-    """``boxes`` as nested lists of floats; JSON has no infinity: unbounded sides are null."""
-    boxes = np.asarray(boxes, dtype=np.float64)
-    unbounded = np.isinf(boxes)
-    if not unbounded.any():
-        return boxes.tolist()
-    listed = boxes.astype(object)
-    listed[unbounded] = None
-    return listed.tolist()
 
 
 def _hypothesis_to_json(h: Hypothesis, rank: int) -> dict[str, Any]:

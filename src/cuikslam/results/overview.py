@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cuikslam.results.solution import Envelope, Hypothesis
+from cuikslam.outcome.solution import Envelope, Hypothesis
 
 __all__ = ["BoxStatistics", "box_statistics", "envelope_lines", "overview_lines", "worst_poses"]
 

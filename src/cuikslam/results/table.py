@@ -9,7 +9,7 @@ import numpy as np
 from rich.table import Table
 
 from cuikslam.log.records import Bounds
-from cuikslam.results.solution import Hypothesis, Solution
+from cuikslam.outcome.solution import Hypothesis, Solution
 
 __all__ = [
     "comparison_table",

@@ -17,7 +17,7 @@ from cuikslam.errors import InputFileError
 from cuikslam.log.records import Log
 
 if TYPE_CHECKING:
-    from cuikslam.results.solution import Solution
+    from cuikslam.outcome.solution import Solution
     from cuikslam.simulate.truth import GroundTruth
 
 __all__ = ["TruthMisfit", "TruthMismatchError", "check_truth_fits", "truth_misfit"]

@@ -1,45 +1,26 @@
-"""Certified consistency of a hypothesis: a witness point found numerically, verified rigorously.
+"""The certification's former home: it is :mod:`cuikslam.witness` (it certifies
+known-correspondence solves too, so it is no part of the search).
 
-Narrowing can prove a hypothesis *impossible* (its boxes contract to empty) but never that
-it is *possible*. This package does the latter: it looks for one world (poses and
-landmarks) that satisfies every measured interval of the log under the hypothesis'
-assignment, with a local optimiser, and then verifies that point with the interval kernel
-(:mod:`cuikslam.interval`), so that a ``True`` answer is a proof.
-
-The stages, one module each:
-
-* :mod:`.model`: :class:`HypothesisModel`, the parametrisation of a hypothesis (an anchor
-  pose, a turn and distance per tree odometry, a ``(dx, dy, dtheta)`` per tree relative
-  pose and per sensor offset, landmark positions) and its checks (every other measured
-  interval, loop closures, the sensor's negative information), evaluated in floating point
-  for the optimisers; :mod:`._kinematics` builds the tree of poses and sensor poses and
-  runs it in floating point and in interval arithmetic;
-* :mod:`.verify`: :func:`verify_witness`, the rigorous decision: interval forward
-  kinematics from a parameter point, and a Poincaré–Miranda box around it when loop
-  closures make equalities;
-* :mod:`._world`: the same hypothesis in its *world form* (every frame and landmark a
-  parameter, every motion a check: a sparse Jacobian), where the search minimises;
-* :mod:`.find`: :func:`find_witness`, the local search for a point that verifies;
-* :mod:`.certification`: :func:`certify`, which runs it on every hypothesis of a
-  :class:`~cuikslam.results.Solution`, sharing one budget;
-* :mod:`.fit`: :func:`fit_hypotheses`, the least-squares cost of each hypothesis' best
-  world, which ranks equally parsimonious hypotheses;
-* :mod:`.hull`: :func:`inner_hull`, the same machinery used to measure the exact solution
-  set from inside (every point it keeps is verified), to judge how tight the narrowed
-  boxes are.
+This package stays importable for existing code: its names are those of
+:mod:`cuikslam.witness`, and its public modules (``cuikslam.hypotheses.witness.fit``, ...)
+are the same module objects as the new ones (so a patch through either reaches both).
 """
 
-from cuikslam.hypotheses.witness.certification import certify
-from cuikslam.hypotheses.witness.find import find_witness
-from cuikslam.hypotheses.witness.fit import fit_hypotheses
-from cuikslam.hypotheses.witness.hull import InnerHull, inner_hull
-from cuikslam.hypotheses.witness.model import (
+import importlib
+import sys
+
+from cuikslam.witness import (
     AIM_FRACTION,
     MIN_MARGIN,
     HypothesisModel,
+    InnerHull,
     WitnessPoint,
+    certify,
+    find_witness,
+    fit_hypotheses,
+    inner_hull,
+    verify_witness,
 )
-from cuikslam.hypotheses.witness.verify import verify_witness
 
 __all__ = [
     "AIM_FRACTION",
@@ -53,3 +34,9 @@ __all__ = [
     "inner_hull",
     "verify_witness",
 ]
+
+MODULES = ("certification", "find", "fit", "hull", "model", "verify")
+"""The public modules of :mod:`cuikslam.witness` importable under this package's name."""
+
+for _name in MODULES:
+    sys.modules[f"{__name__}.{_name}"] = importlib.import_module(f"cuikslam.witness.{_name}")

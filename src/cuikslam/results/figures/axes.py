@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cuikslam.outcome.solution import Hypothesis
 from cuikslam.results.figures.artists import (
     FAN_RADIUS,
     POSE_COLOR,
@@ -40,7 +41,6 @@ from cuikslam.results.figures.geometry import (
     scene_extent,
     spread_labels,
 )
-from cuikslam.results.solution import Hypothesis
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

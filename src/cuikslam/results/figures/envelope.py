@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from cuikslam.outcome.solution import Envelope
 from cuikslam.results.figures.artists import (
     ENVELOPE_COLOR,
     ENVELOPE_WIDTH,
@@ -28,7 +29,6 @@ from cuikslam.results.figures.geometry import (
     _xy_boxes,
     drawn_poses,
 )
-from cuikslam.results.solution import Envelope
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

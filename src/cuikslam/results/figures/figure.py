@@ -13,6 +13,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from cuikslam._atomic import atomic_open
+from cuikslam.outcome.solution import Envelope, Hypothesis, Solution, no_hypothesis
+from cuikslam.outcome.summary import ambiguous_observations
 from cuikslam.results.figures.artists import (
     FAN_RADIUS,
     _draw_truth,
@@ -34,8 +36,6 @@ from cuikslam.results.figures.geometry import (
     scene_extent,
     widest_stretch,
 )
-from cuikslam.results.solution import Envelope, Hypothesis, Solution, no_hypothesis
-from cuikslam.results.summary import ambiguous_observations
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes

@@ -12,8 +12,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cuikslam.outcome.solution import Envelope, Hypothesis
 from cuikslam.results.association import paired_landmarks
-from cuikslam.results.solution import Envelope, Hypothesis
 
 if TYPE_CHECKING:
     from cuikslam.simulate.truth import GroundTruth

@@ -10,6 +10,8 @@ import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
+from cuikslam.outcome.solution import Hypothesis, Solution
+from cuikslam.outcome.summary import ambiguous_observations
 from cuikslam.results.figures.artists import _drawn_kinds, _legend_handles, class_color_map
 from cuikslam.results.figures.figure import (
     DPI,
@@ -22,8 +24,6 @@ from cuikslam.results.figures.figure import (
     _used_colors,
 )
 from cuikslam.results.figures.geometry import Extent
-from cuikslam.results.solution import Hypothesis, Solution
-from cuikslam.results.summary import ambiguous_observations
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

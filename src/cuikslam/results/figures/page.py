@@ -20,6 +20,7 @@ import os
 from typing import TYPE_CHECKING, Any
 
 from cuikslam._atomic import atomic_write_text
+from cuikslam.outcome.solution import Solution, no_hypothesis
 from cuikslam.results.figures.artists import ENVELOPE_COLOR, POSE_COLOR, TRUTH_COLOR
 from cuikslam.results.figures.figure import WIDTH_PANEL_POSES, _classes, _solution_extent, _suptitle
 from cuikslam.results.figures.geometry import MAX_POSE_BOXES, Extent
@@ -32,7 +33,6 @@ from cuikslam.results.figures.page_data import (
     pose_order,
     stretch_of,
 )
-from cuikslam.results.solution import Solution, no_hypothesis
 
 if TYPE_CHECKING:
     from cuikslam.simulate.truth import GroundTruth

@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from cuikslam.outcome.solution import Envelope, Hypothesis, Solution
+from cuikslam.outcome.summary import ambiguous_observations, describe, summary_from_json
 from cuikslam.results.figures.artists import FAN_RADIUS
 from cuikslam.results.figures.axes import _LABEL_SPACING, _LONG_RUN_LABEL_SPACING
 from cuikslam.results.figures.figure import _MAX_TITLE_OBSERVATIONS, _panel_title
@@ -35,8 +37,6 @@ from cuikslam.results.figures.geometry import (
     spread_labels,
     widest_stretch,
 )
-from cuikslam.results.solution import Envelope, Hypothesis, Solution
-from cuikslam.results.summary import ambiguous_observations, describe, summary_from_json
 
 if TYPE_CHECKING:
     from cuikslam.simulate.truth import GroundTruth
@@ -334,7 +334,7 @@ def hypothesis_html(solution: Solution, rank: int) -> str:
 
 def correspondence_html(solution: Solution) -> str:
     """What the survivors agree on, as HTML: the summary's sentence
-    (:func:`~cuikslam.results.summary.describe`), what each observation may follow
+    (:func:`~cuikslam.outcome.summary.describe`), what each observation may follow
     (the observation that saw the same landmark last, ``#j``; a named landmark; or
     ``new``), which associations are certain, the independent groups of ambiguous ones,
     and the solve's messages."""

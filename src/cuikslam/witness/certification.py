@@ -1,7 +1,7 @@
 """Certifying a solution: the witness search on every hypothesis, sharing one budget.
 
 :func:`certify` runs a :class:`~.find.WitnessSearch` per hypothesis of a
-:class:`~cuikslam.results.Solution`, round-robin, marks the proven ones (only a point
+:class:`~cuikslam.outcome.solution.Solution`, round-robin, marks the proven ones (only a point
 :mod:`.verify` proves makes a hypothesis ``proven consistent``), ranks them again and
 records the search's statistics and what it left undecided.
 """
@@ -13,16 +13,16 @@ import time
 import numpy as np
 
 from cuikslam.budget import Budget
-from cuikslam.hypotheses.witness.find import (
+from cuikslam.log.records import Log
+from cuikslam.outcome.solution import NOT_REFUTED, PROVEN, Hypothesis, Solution
+from cuikslam.witness.find import (
     MAX_EVALUATIONS,
     MAX_TOTAL_EVALUATIONS,
     WitnessSearch,
     WitnessStatistics,
 )
-from cuikslam.hypotheses.witness.model import HypothesisModel
-from cuikslam.hypotheses.witness.verify import verified_box
-from cuikslam.log.records import Log
-from cuikslam.results.solution import NOT_REFUTED, PROVEN, Hypothesis, Solution
+from cuikslam.witness.model import HypothesisModel
+from cuikslam.witness.verify import verified_box
 
 FIRST_QUOTA = 64
 """Residual evaluations each start may use in the first round of :func:`certify` when
@@ -56,7 +56,7 @@ def certify(
     ``poses_xyt`` (rows in the hypothesis' ``pose_ids`` order) and ``landmarks_xy`` (rows in
     its ``landmark_ids`` order); otherwise they become (or stay) ``NOT_REFUTED`` without a
     witness. The decided hypotheses are then ranked again, proven ones first
-    (:attr:`~cuikslam.results.Hypothesis.rank_key`); those beyond ``max_hypotheses`` are
+    (:attr:`~cuikslam.outcome.solution.Hypothesis.rank_key`); those beyond ``max_hypotheses`` are
     untouched.
 
     The hypotheses share the budget round-robin: every one gets its first two starts (most

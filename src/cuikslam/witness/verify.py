@@ -38,10 +38,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from cuikslam import interval as ia
-from cuikslam.hypotheses.witness._kinematics import interval_kinematics, relative_enclosure
-from cuikslam.hypotheses.witness.model import HypothesisModel, WitnessPoint
 from cuikslam.interval.angles import angles_inside, out_of_view_arc
 from cuikslam.log.records import Log
+from cuikslam.witness._kinematics import interval_kinematics, relative_enclosure
+from cuikslam.witness.model import HypothesisModel, WitnessPoint
 
 _WINDOW = 3.5
 """Half-width of the angle window given to ``angle_of``: more than pi, so the window holds

@@ -10,7 +10,7 @@ least-squares back end minimises with those as standard deviations; with a ``sen
 record of finite range, for a hypothesis without outliers, plus each pose's violations
 of the negative information, squared, in the median half-widths of the ranges and
 bearings), and
-:attr:`~cuikslam.results.Hypothesis.rank_key` ranks by it after parsimony. On Lost in the
+:attr:`~cuikslam.outcome.solution.Hypothesis.rank_key` ranks by it after parsimony. On Lost in the
 Woods (2,000 samples, every id dropped, the surveyed map, 176 survivors) the truth ranks
 first by it (cost 45.5, the next 48.1); by smallest boxes it ranked last. A wrong "new
 landmark" explanation fits the readings as well as the truth (it has one landmark to
@@ -35,23 +35,23 @@ from collections.abc import Callable
 import numpy as np
 
 from cuikslam.budget import Budget, OutOfTime, blas_single_thread, expired
-from cuikslam.hypotheses.witness._dense import (
+from cuikslam.log.records import Log
+from cuikslam.outcome.naming import display_names, named_landmarks
+from cuikslam.outcome.solution import OUTLIER, Hypothesis, Solution
+from cuikslam.outliers import log_without_observations
+from cuikslam.witness._dense import (
     dense_least_squares,
     evaluation_cost,
     param_bounds,
     tr_solver_for,
 )
-from cuikslam.hypotheses.witness.find import (
+from cuikslam.witness.find import (
     CENTRE_TOLERANCE,
     WitnessStatistics,
     _Meter,
     _OutOfWork,
 )
-from cuikslam.hypotheses.witness.model import HypothesisModel
-from cuikslam.log.records import Log
-from cuikslam.outliers import log_without_observations
-from cuikslam.results.association import display_names, named_landmarks
-from cuikslam.results.solution import OUTLIER, Hypothesis, Solution
+from cuikslam.witness.model import HypothesisModel
 
 __all__ = ["FIT_EVALUATIONS", "FIT_MAX_HYPOTHESES", "fit_cost", "fit_hypotheses"]
 
@@ -190,7 +190,7 @@ def fit_hypotheses(
     known: Callable[[list[str]], Hypothesis | None] | None = None,
 ) -> int:
     """Give every hypothesis of ``solution`` its least-squares ``fit``, in rank order, and
-    rank them again (:attr:`~cuikslam.results.Hypothesis.rank_key`); returns how many
+    rank them again (:attr:`~cuikslam.outcome.solution.Hypothesis.rank_key`); returns how many
     reported hypotheses have one.
 
     A hypothesis that takes observations as outliers is fitted on the log without them

@@ -6,7 +6,7 @@ It minimises in the world form (:mod:`._world`: poses and landmarks as parameter
 Jacobian, so an evaluation's cost grows with the log, not with its square) and verifies
 the model's parameters read off that world.
 :func:`~.certification.certify` runs that search on every hypothesis of a
-:class:`~cuikslam.results.Solution` and marks the proven ones.
+:class:`~cuikslam.outcome.solution.Solution` and marks the proven ones.
 
 The search has a budget: a deadline (checked at every evaluation of the residuals, so it
 stops within one least-squares step of it) and a work limit (``MAX_EVALUATIONS`` residual
@@ -24,17 +24,17 @@ from typing import Any
 import numpy as np
 
 from cuikslam.budget import COSTS, Budget, OutOfTime, blas_single_thread, expired, spend
-from cuikslam.hypotheses.witness._levenberg import bounded_least_squares
-from cuikslam.hypotheses.witness._numeric import finite, midpoint
-from cuikslam.hypotheses.witness._world import WorldForm
-from cuikslam.hypotheses.witness.model import (
+from cuikslam.log.records import Log
+from cuikslam.witness._levenberg import bounded_least_squares
+from cuikslam.witness._numeric import finite, midpoint
+from cuikslam.witness._world import WorldForm
+from cuikslam.witness.model import (
     HypothesisModel,
     LandmarkBoxes,
     PoseBoxes,
     WitnessPoint,
 )
-from cuikslam.hypotheses.witness.verify import verified_box
-from cuikslam.log.records import Log
+from cuikslam.witness.verify import verified_box
 
 _HOPELESS = 0.5
 """A hinge residual (in half-widths) beyond which aiming closer to the bounds is not tried."""

@@ -30,8 +30,8 @@ import numpy as np
 
 from cuikslam import interval as ia
 from cuikslam.graph.variables import length_bounds
-from cuikslam.hypotheses.witness._numeric import cos_sin, midpoint, wrap_near
 from cuikslam.log.records import Bounds, Odometry, PosePrior, RelativePose
+from cuikslam.witness._numeric import cos_sin, midpoint, wrap_near
 
 
 @dataclass

@@ -17,9 +17,10 @@ from typing import Any
 import numpy as np
 
 from cuikslam.budget import blas_single_thread
-from cuikslam.hypotheses.witness._numeric import half_width, uniform
-from cuikslam.hypotheses.witness.find import find_point
-from cuikslam.hypotheses.witness.model import (
+from cuikslam.log.records import Log
+from cuikslam.witness._numeric import half_width, uniform
+from cuikslam.witness.find import find_point
+from cuikslam.witness.model import (
     AIM_FRACTION,
     HypothesisModel,
     LandmarkBoxes,
@@ -27,8 +28,7 @@ from cuikslam.hypotheses.witness.model import (
     WitnessPoint,
     aim_margin,
 )
-from cuikslam.hypotheses.witness.verify import verified_box
-from cuikslam.log.records import Log
+from cuikslam.witness.verify import verified_box
 
 
 @dataclass

@@ -49,14 +49,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from cuikslam.graph.variables import length_bounds, offset_key
-from cuikslam.hypotheses.witness._kinematics import Tree, kinematics, relative_values
-from cuikslam.hypotheses.witness._numeric import finite, half_width, midpoint, wrap_near
-from cuikslam.hypotheses.witness._residuals import Residuals
-from cuikslam.hypotheses.witness._sensor import SENSOR_MARGIN as SENSOR_MARGIN
-from cuikslam.hypotheses.witness._sensor import distance as _distance
-from cuikslam.hypotheses.witness._starts import LandmarkBoxes as LandmarkBoxes
-from cuikslam.hypotheses.witness._starts import PoseBoxes as PoseBoxes
-from cuikslam.hypotheses.witness._starts import Starts
 from cuikslam.log.records import (
     LandmarkPrior,
     Log,
@@ -65,6 +57,14 @@ from cuikslam.log.records import (
     PosePrior,
     RelativePose,
 )
+from cuikslam.witness._kinematics import Tree, kinematics, relative_values
+from cuikslam.witness._numeric import finite, half_width, midpoint, wrap_near
+from cuikslam.witness._residuals import Residuals
+from cuikslam.witness._sensor import SENSOR_MARGIN as SENSOR_MARGIN
+from cuikslam.witness._sensor import distance as _distance
+from cuikslam.witness._starts import LandmarkBoxes as LandmarkBoxes
+from cuikslam.witness._starts import PoseBoxes as PoseBoxes
+from cuikslam.witness._starts import Starts
 
 AIM_FRACTION = 0.1
 """The optimiser aims this fraction of each interval's half-width inside it."""
@@ -130,7 +130,7 @@ class HypothesisModel(Starts, Residuals):
     """The parametrisation of a hypothesis and its checks (see the module docstring).
 
     Poses and landmarks are numbered in the order the kinematic graph uses (first
-    appearance in the log), so that arrays of a :class:`~cuikslam.results.Hypothesis` of a
+    appearance in the log), so that arrays of a :class:`~cuikslam.outcome.solution.Hypothesis` of a
     known-correspondence solve line up; mappings by id are accepted everywhere too.
     ``problems`` lists structural contradictions (a landmark of two classes, one landmark
     twice in a scan, an empty interval): a hypothesis with problems never gets a witness.

@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 
 from cuikslam.budget import COSTS, Budget, OutOfTime, expired, spend
-from cuikslam.hypotheses.witness._kinematics import step_from_world
-from cuikslam.hypotheses.witness._numeric import (
+from cuikslam.witness._kinematics import step_from_world
+from cuikslam.witness._numeric import (
     cos_sin,
     finite,
     half_width,

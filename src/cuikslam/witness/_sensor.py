@@ -16,9 +16,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cuikslam.hypotheses.witness._numeric import BIG, wrap_near
 from cuikslam.interval.angles import out_of_view_arc
 from cuikslam.log.records import SensorModel
+from cuikslam.witness._numeric import BIG, wrap_near
 
 SENSOR_MARGIN = 1e-6
 """Aimed clearance (m, rad) from the sensor's visibility thresholds."""

@@ -31,12 +31,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from cuikslam.budget import COSTS
-from cuikslam.hypotheses.witness._levenberg import fill_reducing_order
-from cuikslam.hypotheses.witness._numeric import finite, half_width, midpoint, wrap_near
-from cuikslam.hypotheses.witness._sensor import SENSOR_MARGIN, distance, sensor_terms
+from cuikslam.witness._levenberg import fill_reducing_order
+from cuikslam.witness._numeric import finite, half_width, midpoint, wrap_near
+from cuikslam.witness._sensor import SENSOR_MARGIN, distance, sensor_terms
 
 if TYPE_CHECKING:
-    from cuikslam.hypotheses.witness.model import HypothesisModel
+    from cuikslam.witness.model import HypothesisModel
 
 __all__ = ["DENSE_COLUMNS", "EQUALITY_WEIGHT", "WorldForm"]
 
@@ -144,7 +144,7 @@ class WorldForm:
     """
 
     def __init__(self, model: HypothesisModel) -> None:
-        from cuikslam.hypotheses.witness.model import aim_margin
+        from cuikslam.witness.model import aim_margin
 
         m = self.model = model
         self.landmark_var0 = 3 * m.n_frames
@@ -276,7 +276,7 @@ class WorldForm:
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Bounds of the free variables: the anchors' intervals narrowed by their aimed
         margins, the other variables unbounded."""
-        from cuikslam.hypotheses.witness.model import aim_margin
+        from cuikslam.witness.model import aim_margin
 
         margin = aim_margin(self.var_lo, self.var_hi)
         lb = np.where(np.isfinite(self.var_lo), self.var_lo + margin, -np.inf)

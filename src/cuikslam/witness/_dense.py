@@ -14,9 +14,9 @@ from typing import Any
 import numpy as np
 
 from cuikslam.budget import COSTS
-from cuikslam.hypotheses.witness._levenberg import bounded_least_squares
-from cuikslam.hypotheses.witness._numeric import finite
-from cuikslam.hypotheses.witness.model import HypothesisModel, aim_margin
+from cuikslam.witness._levenberg import bounded_least_squares
+from cuikslam.witness._numeric import finite
+from cuikslam.witness.model import HypothesisModel, aim_margin
 
 TR_SOLVER = "normal"
 """Solver of the least squares on the model's dense Jacobians up to ``LSMR_ABOVE`` free

@@ -20,10 +20,10 @@ from typing import Any
 
 import numpy as np
 
-from cuikslam.hypotheses.witness._numeric import finite, half_width, midpoint
-from cuikslam.hypotheses.witness._sensor import sensor_terms
-from cuikslam.hypotheses.witness._starts import LandmarkBoxes, PoseBoxes
 from cuikslam.log.records import SensorModel
+from cuikslam.witness._numeric import finite, half_width, midpoint
+from cuikslam.witness._sensor import sensor_terms
+from cuikslam.witness._starts import LandmarkBoxes, PoseBoxes
 
 
 class Residuals:
