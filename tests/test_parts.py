@@ -169,3 +169,30 @@ def test_no_lp_depends_on_the_clock_without_a_deadline(monkeypatch: pytest.Monke
     assert report2.lp == report.lp
     np.testing.assert_array_equal(lo2, lo)
     np.testing.assert_array_equal(hi2, hi)
+
+
+def test_parts_keeping_different_2pi_copies_of_a_wide_heading_get_their_hull() -> None:
+    """A heading narrowed from a box wider than 2π keeps one copy of its interval; two parts
+    may keep different copies (found possible by an adversarial tester on 500-pose logs,
+    whose headings are often still unbounded when the sweeps start). Their boxes do not
+    meet, yet neither part proved anything impossible: the result is their hull, not an
+    "empty" proof. A variable whose box was narrower than 2π keeps the intersection, and
+    its empty intersection stays a proof."""
+    from cuikslam.narrowing.parts import Part, run_parts
+
+    def sweep(part: Part, lo: np.ndarray, hi: np.ndarray) -> bool:
+        shift = 2 * np.pi * part.windows.start  # part 0: copy 0, part 1: copy 1
+        lo[0], hi[0] = 0.5 + shift, 1.0 + shift
+        return True
+
+    parts = [Part(range(0, 1), 2, None), Part(range(1, 2), 2, None)]
+    lo, hi = np.array([-np.inf, 0.0]), np.array([np.inf, 3.0])
+    assert run_parts(parts, lo, hi, sweep, threads=1) == (True, False)
+    assert (lo[0], hi[0]) == (0.5, 1.0 + 2 * np.pi)
+
+    def split(part: Part, lo: np.ndarray, hi: np.ndarray) -> bool:
+        lo[1], hi[1] = (0.0, 1.0) if part.windows.start == 0 else (2.0, 3.0)
+        return True
+
+    lo, hi = np.array([-np.inf, 0.0]), np.array([np.inf, 3.0])
+    assert run_parts(parts, lo, hi, split, threads=1) == (True, True)

@@ -28,6 +28,7 @@ import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import Budget
+from cuikslam.interval.angles import TWO_PI_LO
 from cuikslam.narrowing.lp_bounds import LpStatistics
 
 __all__ = ["MIN_PART_WINDOWS", "PARTS", "Part", "default_threads", "partition", "run_parts"]
@@ -122,6 +123,11 @@ def run_parts(
     returns False when it proved the graph inconsistent. The first part runs in this
     thread, the others on up to ``threads - 1`` more threads.
 
+    A variable whose box was wider than 2π before the sweep and whose parts' boxes do not
+    meet gets their hull instead: a heading narrowed from such a box keeps one 2π copy of
+    its interval (:mod:`cuikslam.interval.angles`), and two parts may keep different
+    copies of the same headings.
+
     Returns
     -------
     tuple of bool
@@ -149,7 +155,15 @@ def run_parts(
             results = [first] + [future.result() for future in futures]
     if not all(results):
         return False, False
+    with np.errstate(invalid="ignore", over="ignore"):  # inf - inf: NaN, counted wide
+        wide = ~(hi - lo < TWO_PI_LO)  # boxes at least 2π wide before the sweep
     for part in parts:
         np.maximum(lo, part.lo, out=lo)
         np.minimum(hi, part.hi, out=hi)
+    apart = (lo > hi) & wide
+    if apart.any():
+        # a heading narrowed from a box wider than 2π keeps one 2π copy of its interval,
+        # and two parts may keep different copies: their hull holds both, soundly
+        lo[apart] = np.min([part.lo[apart] for part in parts], axis=0)
+        hi[apart] = np.max([part.hi[apart] for part in parts], axis=0)
     return True, bool(np.any(lo > hi))

@@ -24,6 +24,7 @@ __all__ = [
     "OUTLIER",
     "PROVEN",
     "Envelope",
+    "ExactLike",
     "Hypothesis",
     "Solution",
     "TruthReport",

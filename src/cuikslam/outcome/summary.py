@@ -18,6 +18,7 @@ import numpy as np
 from cuikslam.outcome.solution import OUTLIER, Solution
 
 __all__ = [
+    "NEW",
     "Ambiguity",
     "CorrespondenceSummary",
     "ambiguous_observations",

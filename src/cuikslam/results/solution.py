@@ -1,32 +1,7 @@
 """What a solve returns: re-exported from :mod:`cuikslam.outcome.solution`, its home below
 the search (this module stays importable for existing code and pickled results)."""
 
-from cuikslam.outcome.solution import (
-    NOT_REFUTED,
-    OUTLIER,
-    PROVEN,
-    Envelope,
-    ExactLike,
-    Hypothesis,
-    Solution,
-    TruthReport,
-    bounds_to_json,
-    check_envelope,
-    check_truth,
-    no_hypothesis,
-)
+from cuikslam.outcome import solution as _home
+from cuikslam.outcome.solution import *  # noqa: F403 (every public name of its home)
 
-__all__ = [
-    "NOT_REFUTED",
-    "OUTLIER",
-    "PROVEN",
-    "Envelope",
-    "ExactLike",
-    "Hypothesis",
-    "Solution",
-    "TruthReport",
-    "bounds_to_json",
-    "check_envelope",
-    "check_truth",
-    "no_hypothesis",
-]
+__all__ = list(_home.__all__)

@@ -9,31 +9,10 @@ are the same module objects as the new ones (so a patch through either reaches b
 import importlib
 import sys
 
-from cuikslam.witness import (
-    AIM_FRACTION,
-    MIN_MARGIN,
-    HypothesisModel,
-    InnerHull,
-    WitnessPoint,
-    certify,
-    find_witness,
-    fit_hypotheses,
-    inner_hull,
-    verify_witness,
-)
+from cuikslam import witness as _home
+from cuikslam.witness import *  # noqa: F403 (every public name of its home)
 
-__all__ = [
-    "AIM_FRACTION",
-    "MIN_MARGIN",
-    "HypothesisModel",
-    "InnerHull",
-    "WitnessPoint",
-    "certify",
-    "find_witness",
-    "fit_hypotheses",
-    "inner_hull",
-    "verify_witness",
-]
+__all__ = list(_home.__all__)
 
 MODULES = ("certification", "find", "fit", "hull", "model", "verify")
 """The public modules of :mod:`cuikslam.witness` importable under this package's name."""
