@@ -486,6 +486,9 @@ def worlds(
     max_observations: int = 60,
     named_fractions: Sequence[float] = (0.0, 0.25, 0.5, 0.8, 1.0),
     offsets: bool = False,
+    scan_probability: float = 0.5,
+    max_range: tuple[float, float] = (1.5, 7.0),
+    true_random: bool | None = None,
 ) -> World:
     """A random true world and its log (see the module docstring).
 
@@ -495,10 +498,19 @@ def worlds(
 
     Structure (sizes, sensor kind, error bounds) is drawn directly; the many numbers of a
     world come from a Hypothesis-driven ``random.Random``, so they shrink too.
+
+    Long worlds (see :data:`LONG`) need three more knobs: ``scan_probability``, the chance
+    that a pose without a sensor record observes a landmark near it (the sensor rules
+    decide for the others); ``max_range``, the range of a drawn ``max_range``; and
+    ``true_random=True``, numbers from a true ``random.Random`` seeded by Hypothesis (a
+    world of hundreds of poses draws more numbers than Hypothesis' buffer holds; then the
+    shuffled pose ids come from it too). None draws the kind of numbers, as for small
+    worlds.
     """
     # Hypothesis-made numbers find edge cases (zeros, equal values, exact 2π); true random
     # numbers (seeded by Hypothesis, so reproducible) find the generic ones.
-    rng = draw(st.randoms(use_true_random=draw(st.booleans())))
+    use_true_random = draw(st.booleans()) if true_random is None else true_random
+    rng = draw(st.randoms(use_true_random=use_true_random))
     n_poses = draw(st.integers(*poses))
     n_landmarks = draw(st.integers(*landmarks))
     n_classes = draw(st.integers(1, 3))
@@ -524,7 +536,9 @@ def worlds(
     )
     p_named = draw(st.sampled_from(list(named_fractions)))
     ids = draw(st.sampled_from(["consecutive", "consecutive", "stride", "shuffled"]))
-    if ids == "shuffled":  # ids need not grow with time
+    if ids == "shuffled" and true_random:  # a long world: Hypothesis' buffer is too small
+        pose_ids = rng.sample(range(4 * n_poses), n_poses)
+    elif ids == "shuffled":  # ids need not grow with time
         pose_ids = draw(st.permutations(range(4 * n_poses)))[:n_poses]
     else:
         pose_ids = [(3 if ids == "stride" else 1) * k for k in range(n_poses)]
@@ -591,7 +605,7 @@ def worlds(
     sensor = None
     if kind != "none":
         sensor = Sensor(
-            max_range=rng.uniform(1.5, 7.0) if "R" in kind else None,
+            max_range=rng.uniform(*max_range) if "R" in kind else None,
             fov=rng.choice([rng.uniform(0.5, 6.2), math.pi, 2 * math.pi, 7.0])
             if "F" in kind
             else None,
@@ -616,11 +630,11 @@ def worlds(
                 (lid, m)
                 for m, mount in enumerate(mounts)
                 for lid in truth.landmarks
-                if truth.range_bearing(pose, lid, mount)[0] < 6 and rng.random() < 0.5
+                if truth.range_bearing(pose, lid, mount)[0] < 6 and rng.random() < scan_probability
             ]
         else:
             near = [lid for lid in truth.landmarks if truth.range_bearing(pose, lid)[0] < 6]
-            scan = [(lid, None) for lid in near if rng.random() < 0.5]
+            scan = [(lid, None) for lid in near if rng.random() < scan_probability]
         rng.shuffle(scan)
         scans[pose] = scan
     assume(sum(map(len, scans.values())) <= max_observations)
