@@ -84,11 +84,11 @@ def timed(owner, name, key):
 
 import cuikslam.solver as solver
 import cuikslam.hypotheses.explorer as explorer
-import cuikslam.hypotheses.search as search
+import cuikslam.hypotheses.finish as finish
 timed(solver, "warm_up", "kernels loaded (warm_up)")
 timed(solver, "certify", lambda log, *a: "witness search " + (
     "(unknown)" if log.has_unknown_correspondence else "(known)"))
-timed(search, "refute_by_bisection", "bisection")
+timed(finish, "refute_by_bisection", "bisection")
 timed(explorer, "refute_by_bisection", "bisection")
 timed(solver, "solve_unknown", "search (+ lp on survivors)")
 timed(solver, "_solve_known", "known correspondence (hull + lp)")
