@@ -140,7 +140,7 @@ def _assert_rows_hold(relaxation, values: list) -> None:
             assert mpf(relaxation.col_lo[j]) <= x <= mpf(relaxation.col_hi[j]), j
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(world=exact_worlds(poses=(3, 12), landmarks=(1, 5), sensors=("none",)))
 def test_relaxation_rows_hold_at_the_truth(world: World) -> None:
     """The exact truth satisfies every row of the relaxation, and its LP bounds keep it.

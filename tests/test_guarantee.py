@@ -290,7 +290,7 @@ def test_offset_worlds_measure_their_world_and_keep_their_truth(world: World) ->
 
 
 @pytest.mark.parametrize("naming", ["none", "mixed"])
-@ci(30)
+@ci(15)
 @given(world=worlds(**SEARCHED, **OFFSETS))
 def test_search_keeps_the_truth_with_sensor_offsets(world: World, naming: str) -> None:
     """Unknown correspondence from offset sensors: each observation is seen from its

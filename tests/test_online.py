@@ -169,7 +169,7 @@ def check_unknown(world: World, naming: str) -> None:
 
 
 @pytest.mark.parametrize("naming", ["none", "mixed"])
-@settings(max_examples=60, deadline=None, derandomize=True, suppress_health_check=HEALTH)
+@settings(max_examples=30, deadline=None, derandomize=True, suppress_health_check=HEALTH)
 @given(world=worlds(**TINY))
 def test_unknown_correspondence_keeps_the_truth_at_every_pose(world: World, naming: str) -> None:
     check_unknown(world, naming)

@@ -100,7 +100,7 @@ def _misses(h: Hypothesis, world: World, named: set[str]) -> list[str]:
     return truth_misses(replace(h, assignment=[h.assignment[i] for i in keep]), truth, named)
 
 
-@settings(max_examples=120, deadline=None, derandomize=True, suppress_health_check=HEALTH)
+@settings(max_examples=60, deadline=None, derandomize=True, suppress_health_check=HEALTH)
 @given(
     world=worlds(**OUTLIER_WORLDS),
     naming=st.sampled_from(["none", "none", "mixed"]),
