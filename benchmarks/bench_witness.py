@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import platform
 import resource
@@ -45,19 +44,14 @@ import tempfile
 import time
 from pathlib import Path
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_hypotheses import DENSE
+
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / "benchmarks" / "results" / "witness.json"
 
 ROOM = {"size": (30.0, 20.0), "max_range": 6.0}
 KNOWN = [(50, 1), (200, 42), (200, 2), (500, 3), (1000, 4), (2000, 5)]
-DENSE = {
-    "size": (30.0, 30.0),
-    "step_length": (2.0, 2.0),
-    "max_range": 12.0,
-    "fov": math.pi,
-    "odometry_bounds": (math.radians(1.0), 0.05),
-    "observation_bounds": (0.05, math.radians(1.0)),
-}
 DENSE_CASES = [(30, 9), (60, 2), (60, 7), (100, 2)]
 
 
