@@ -151,8 +151,12 @@ def paper_command(figure: Path, extra: list[str], venv: Path | None = None) -> l
 
 
 def part_whole(repeat: int, extra: list[str], skip_cold: bool, tmp: Path) -> dict:
-    """Cold then warm whole-command runs."""
-    env = dict(os.environ)
+    """Cold then warm whole-command runs.
+
+    Python writes its byte-code caches as a user's would (``PYTHONDONTWRITEBYTECODE`` is
+    dropped: with it, every module edited since its ``.pyc`` was written is compiled again
+    on every run, about 0.05 s here)."""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
     rows: dict[str, list[dict]] = {"cold": [], "warm": []}
     if not skip_cold:
         env["NUMBA_CACHE_DIR"] = str(tmp / "numba-cache")

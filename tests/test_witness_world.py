@@ -15,10 +15,11 @@ from hypothesis import HealthCheck, assume, event, given, settings
 from hypothesis import strategies as st
 
 from cuikslam.log.records import Log, Observation
+from cuikslam.results.io import read_result_file, write_result_file
 from cuikslam.results.solution import NOT_REFUTED, PROVEN
 from cuikslam.simulate import simulate_random_world
 from cuikslam.solver import solve
-from cuikslam.witness import HypothesisModel, _world, certify
+from cuikslam.witness import HypothesisModel, _world, certify, verify_witness
 from cuikslam.witness._world import WorldForm
 from test_witness import SLACKS, closed_paper_loop, mp_consistent, true_params
 from test_witness_motion import _true_params, motion_world
@@ -123,13 +124,20 @@ def test_a_long_labelled_world_is_proven_within_the_default_budget(seed: int) ->
     [h] = solution.hypotheses
     assert h.status == PROVEN
     assert solution.statistics["witness_evaluations"] <= 200  # about 30 measured
+    assert mp_consistent(log, h.assignment, _verified_params(log, h))
+
+
+def _verified_params(log: Log, h) -> np.ndarray:
+    """The verified point of ``h``'s witness (its ``params``), after checking that its
+    world is their floating-point image, pose by pose and landmark by landmark."""
     model = HypothesisModel(log, h.assignment)
-    params = model.params_from_world(
-        dict(zip(h.pose_ids, h.witness["poses_xyt"], strict=True)),
-        dict(zip(h.landmark_ids, h.witness["landmarks_xy"], strict=True)),
-        clip=False,
-    )
-    assert mp_consistent(log, h.assignment, params)
+    params = np.asarray(h.witness["params"], dtype=float)
+    point = model.point(params)
+    for k, pid in enumerate(h.pose_ids):
+        assert point.pose(pid).tolist() == h.witness["poses_xyt"][k].tolist()
+    for k, lid in enumerate(h.landmark_ids):
+        assert point.landmark(lid).tolist() == h.witness["landmarks_xy"][k].tolist()
+    return params
 
 
 def _relabelled(seed: int, which: int) -> tuple[Log, list[str], list[str]]:
@@ -204,10 +212,35 @@ def test_a_borderline_long_log_is_proven_only_when_it_is_consistent(seed: int, d
     solution = solve(narrowed, consistency="hull", work_budget=2e6)
     for h in solution.hypotheses:
         if h.status == PROVEN:
-            params = HypothesisModel(narrowed, h.assignment).params_from_world(
-                dict(zip(h.pose_ids, h.witness["poses_xyt"], strict=True)),
-                dict(zip(h.landmark_ids, h.witness["landmarks_xy"], strict=True)),
-                clip=False,
-            )
-            assert mp_consistent(narrowed, h.assignment, params)
+            assert mp_consistent(narrowed, h.assignment, _verified_params(narrowed, h))
         event(h.status)
+
+
+def test_a_witness_verifies_again_from_its_result_file(tmp_path) -> None:
+    """The example a fresh-clone CI run drew (seed 65536, one range narrowed to 1e-3 past
+    the truth): the witness world's rounded poses, taken back to parameters, missed an
+    odometry distance by 1.2e-15, so a proof written to a file could not be checked from
+    it. The file now keeps the verified parameters: they verify again after the round
+    trip, and hold at 60 digits."""
+    seed = 65536
+    log, truth = simulate_random_world(
+        seed=seed, n_poses=60, n_landmarks=12, size=(30.0, 20.0), max_range=6.0
+    )
+    values, _ = HypothesisModel(log, truth.assignment).evaluate(true_params(log, truth))
+    model = HypothesisModel(log, truth.assignment)
+    rng = random.Random(seed)
+    records = list(log.records)
+    positions = [i for i, r in enumerate(records) if isinstance(r, Observation)]
+    q = rng.randrange(len(positions))
+    r = float(values[int(np.flatnonzero(model.range_sel == q)[0])])
+    lo, hi = records[positions[q]].range
+    bounds = (r - 1e-3, hi) if rng.random() < 0.5 else (lo, r + 1e-3)
+    records[positions[q]] = replace(records[positions[q]], range=bounds)
+    narrowed = Log(records=records)
+    solution = solve(narrowed, consistency="hull", work_budget=2e6)
+    [h] = [h for h in solution.hypotheses if h.status == PROVEN]
+    write_result_file(solution, tmp_path / "result.json")
+    [back] = [b for b in read_result_file(tmp_path / "result.json").hypotheses if b.status == PROVEN]
+    assert back.witness["params"].tolist() == h.witness["params"].tolist()
+    assert verify_witness(narrowed, back.assignment, back.witness["params"])
+    assert mp_consistent(narrowed, back.assignment, _verified_params(narrowed, back))

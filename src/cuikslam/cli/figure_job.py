@@ -40,6 +40,9 @@ PAPER_DPI = 150
 """Pixels per inch of the figure: it is 11 inches wide with two survivors (1,680 pixels,
 240 per inch at a page's 7 inches); drawing it at the library's 200 would add a fifth to
 the drawing the command waits for."""
+PNG_COMPRESS_LEVEL = 1
+"""zlib's level for the PNG the command waits for: 0.03 s to encode the seed's figure
+against 0.15 s at Pillow's default 6, for a file a seventh larger (164 kB against 144 kB)."""
 
 
 @dataclass
@@ -214,13 +217,21 @@ def _main(path: str) -> int:
 
 
 def _write_drawn_png(figure: Figure, path: str) -> None:
-    """Write the canvas as drawn (no new drawing pass), atomically, as ``savefig`` would."""
+    """Write the canvas as drawn (no new drawing pass), atomically, as ``savefig`` would,
+    but at zlib's fastest level (``PNG_COMPRESS_LEVEL``)."""
     from matplotlib.image import imsave
 
     from cuikslam._atomic import atomic_open
 
     with atomic_open(path, "wb") as stream:
-        imsave(stream, figure.canvas.buffer_rgba(), format="png", origin="upper", dpi=figure.dpi)
+        imsave(
+            stream,
+            figure.canvas.buffer_rgba(),
+            format="png",
+            origin="upper",
+            dpi=figure.dpi,
+            pil_kwargs={"compress_level": PNG_COMPRESS_LEVEL},
+        )
 
 
 if __name__ == "__main__":

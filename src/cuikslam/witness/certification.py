@@ -53,8 +53,9 @@ def certify(
     keeps it), the search of
     :func:`find_witness` (started from its boxes, then midpoints, then random points) and
     :func:`verify_witness`; on success ``status`` becomes ``PROVEN`` and ``witness`` holds
-    ``poses_xyt`` (rows in the hypothesis' ``pose_ids`` order) and ``landmarks_xy`` (rows in
-    its ``landmark_ids`` order); otherwise they become (or stay) ``NOT_REFUTED`` without a
+    ``poses_xyt`` (rows in the hypothesis' ``pose_ids`` order), ``landmarks_xy`` (rows in
+    its ``landmark_ids`` order) and ``params``, the verified point in the parameters of
+    :class:`HypothesisModel` (the world is their image in floating point); otherwise they become (or stay) ``NOT_REFUTED`` without a
     witness. The decided hypotheses are then ranked again, proven ones first
     (:attr:`~cuikslam.outcome.solution.Hypothesis.rank_key`); those beyond ``max_hypotheses`` are
     untouched.
@@ -125,7 +126,11 @@ def certify(
             if lid in point.landmark_ids:
                 landmarks[k] = point.landmark(lid)
         h.status = PROVEN
-        h.witness = {"poses_xyt": poses, "landmarks_xy": landmarks}
+        h.witness = {
+            "poses_xyt": poses,
+            "landmarks_xy": landmarks,
+            "params": np.asarray(point.params, dtype=float),
+        }
         proven += 1
     # proven ones first (see Hypothesis.rank_key); the order is otherwise kept
     chosen.sort(key=lambda h: h.rank_key)
@@ -172,14 +177,20 @@ def _ranges(ranks: list[int]) -> str:
 def _witness_holds(model: HypothesisModel, hypothesis: Hypothesis) -> bool:
     """Whether the witness ``hypothesis`` holds already is verified again for ``model``
     (its assignment now): rigorous, as every proof (a hypothesis edited after its proof, or
-    a witness that does not verify, gets the search like any other)."""
+    a witness that does not verify, gets the search like any other).
+
+    The verified point is the witness' ``params`` when it has them for this model; a
+    witness without them (written by hand, or by a version before them) is taken from its
+    world, whose rounded poses may miss a bound by an ulp where the parameters did not."""
     witness = hypothesis.witness
     if hypothesis.status != PROVEN or witness is None:
         return False
-    poses = dict(zip(hypothesis.pose_ids, witness["poses_xyt"], strict=True))
-    landmarks = dict(zip(hypothesis.landmark_ids, witness["landmarks_xy"], strict=True))
-    try:
-        params = model.params_from_world(poses, landmarks, clip=False)
-    except (KeyError, ValueError):
-        return False
+    params = np.asarray(witness.get("params", ()), dtype=float)
+    if params.shape != (model.n_params,):
+        poses = dict(zip(hypothesis.pose_ids, witness["poses_xyt"], strict=True))
+        landmarks = dict(zip(hypothesis.landmark_ids, witness["landmarks_xy"], strict=True))
+        try:
+            params = model.params_from_world(poses, landmarks, clip=False)
+        except (KeyError, ValueError):
+            return False
     return bool(np.all(np.isfinite(params))) and verified_box(model, params) is not None
