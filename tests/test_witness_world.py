@@ -240,7 +240,8 @@ def test_a_witness_verifies_again_from_its_result_file(tmp_path) -> None:
     solution = solve(narrowed, consistency="hull", work_budget=2e6)
     [h] = [h for h in solution.hypotheses if h.status == PROVEN]
     write_result_file(solution, tmp_path / "result.json")
-    [back] = [b for b in read_result_file(tmp_path / "result.json").hypotheses if b.status == PROVEN]
+    back_solution = read_result_file(tmp_path / "result.json")
+    [back] = [b for b in back_solution.hypotheses if b.status == PROVEN]
     assert back.witness["params"].tolist() == h.witness["params"].tolist()
     assert verify_witness(narrowed, back.assignment, back.witness["params"])
     assert mp_consistent(narrowed, back.assignment, _verified_params(narrowed, back))

@@ -55,8 +55,8 @@ def certify(
     :func:`verify_witness`; on success ``status`` becomes ``PROVEN`` and ``witness`` holds
     ``poses_xyt`` (rows in the hypothesis' ``pose_ids`` order), ``landmarks_xy`` (rows in
     its ``landmark_ids`` order) and ``params``, the verified point in the parameters of
-    :class:`HypothesisModel` (the world is their image in floating point); otherwise they become (or stay) ``NOT_REFUTED`` without a
-    witness. The decided hypotheses are then ranked again, proven ones first
+    :class:`HypothesisModel` (the world is their image in floating point); otherwise they
+    become (or stay) ``NOT_REFUTED`` without a witness. The decided hypotheses are then ranked again, proven ones first
     (:attr:`~cuikslam.outcome.solution.Hypothesis.rank_key`); those beyond ``max_hypotheses`` are
     untouched.
 
