@@ -56,9 +56,9 @@ def certify(
     ``poses_xyt`` (rows in the hypothesis' ``pose_ids`` order), ``landmarks_xy`` (rows in
     its ``landmark_ids`` order) and ``params``, the verified point in the parameters of
     :class:`HypothesisModel` (the world is their image in floating point); otherwise they
-    become (or stay) ``NOT_REFUTED`` without a witness. The decided hypotheses are then ranked again, proven ones first
-    (:attr:`~cuikslam.outcome.solution.Hypothesis.rank_key`); those beyond ``max_hypotheses`` are
-    untouched.
+    become (or stay) ``NOT_REFUTED`` without a witness. The decided hypotheses are then
+    ranked again, proven ones first (:attr:`~cuikslam.outcome.solution.Hypothesis.rank_key`);
+    those beyond ``max_hypotheses`` are untouched.
 
     The hypotheses share the budget round-robin: every one gets its first two starts (most
     consistent hypotheses are proven by the first), then the unproven ones get random
