@@ -15,6 +15,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 __all__ = [
     "EXIT_INPUT",
@@ -98,26 +99,38 @@ def progress_bar(
 ) -> Iterator[Callable[[int, int], None] | None]:
     """A rich progress bar on stderr when it is a terminal; ``None`` (no bar) otherwise.
 
-    Yields the ``progress(done, total)`` callback that long solves call as they advance.
+    Yields the ``progress(done, total, status=None)`` callback that long solves call as
+    they advance; a correspondence search's status (``SearchProgress``: readings decided,
+    survivors found and proven, subtrees pending) is shown beside the bar.
     """
     if not (enabled and sys.stderr.isatty()):
         yield None
         return
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        TextColumn,
+        TimeElapsedColumn,
+    )
 
     with Progress(
         f"[bold]{description}",
-        BarColumn(),
+        BarColumn(bar_width=24),
         MofNCompleteColumn(),
+        TextColumn("{task.fields[note]}"),
         TimeElapsedColumn(),
+        console=Console(stderr=True),  # stdout may be a result being piped
         transient=True,
         redirect_stdout=False,
         redirect_stderr=False,
     ) as bar:
-        task = bar.add_task(description, total=None)
+        task = bar.add_task(description, total=None, note="")
 
-        def advance(done: int, total: int) -> None:
-            bar.update(task, completed=done, total=total)
+        def advance(done: int, total: int, status: Any = None) -> None:
+            note = "" if status is None else status.short()
+            bar.update(task, completed=done, total=total, note=note)
 
         yield advance
 

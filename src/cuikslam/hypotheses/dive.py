@@ -26,6 +26,7 @@ from dataclasses import asdict, fields
 
 from cuikslam.budget import COSTS, spend
 from cuikslam.hypotheses.explorer import Explorer
+from cuikslam.hypotheses.progress import ProgressTracker
 from cuikslam.hypotheses.survivors import hypothesis_of
 from cuikslam.hypotheses.tree import Node, SearchLimit
 from cuikslam.outcome.solution import PROVEN, Hypothesis, Solution
@@ -34,6 +35,8 @@ __all__ = ["MAX_DISCREPANCIES", "Dive", "dive", "keep_proof", "prove_leaf"]
 
 MAX_DISCREPANCIES = 2
 """Departures from the children's order allowed on a path, at most."""
+REPORT_EVERY = 64
+"""Expansions between two reports of the dive's depth (a progress bar)."""
 
 
 class Dive:
@@ -65,7 +68,13 @@ class Dive:
         return self.leaf is not None or self._k > MAX_DISCREPANCIES
 
 
-def dive(explorer: Explorer, root: Node, limit: SearchLimit, resume: Dive | None = None) -> Dive:
+def dive(
+    explorer: Explorer,
+    root: Node,
+    limit: SearchLimit,
+    resume: Dive | None = None,
+    tracker: ProgressTracker | None = None,
+) -> Dive:
     """The first leaf of a limited discrepancy search from ``root``, within ``limit``.
 
     The explorer's statistics are left as they were: the exhaustive search that follows
@@ -82,6 +91,8 @@ def dive(explorer: Explorer, root: Node, limit: SearchLimit, resume: Dive | None
         Its budget; the dive stops with no leaf when it is spent.
     resume : Dive, optional
         A dive that a budget stopped, to go on from where it was.
+    tracker : ProgressTracker, optional
+        Told the depth of the dive every ``REPORT_EVERY`` expansions.
 
     Returns
     -------
@@ -95,7 +106,7 @@ def dive(explorer: Explorer, root: Node, limit: SearchLimit, resume: Dive | None
         while not found.finished:
             if found._stack is None:
                 found._stack = [(root, found._k)]
-            if _probe(explorer, found._stack, limit, found):
+            if _probe(explorer, found._stack, limit, found, tracker):
                 found.discrepancies = found._k
                 break
             if limit.exhausted(found.nodes) is not None:
@@ -112,7 +123,11 @@ def dive(explorer: Explorer, root: Node, limit: SearchLimit, resume: Dive | None
 
 
 def _probe(
-    explorer: Explorer, stack: list[tuple[Node, int]], limit: SearchLimit, found: Dive
+    explorer: Explorer,
+    stack: list[tuple[Node, int]],
+    limit: SearchLimit,
+    found: Dive,
+    tracker: ProgressTracker | None,
 ) -> bool:
     """Depth first from what ``stack`` holds, each node with the departures from the
     children's order it may still take (the first child keeps the count, a later one
@@ -131,6 +146,8 @@ def _probe(
         applications = graph.applications
         kids, _ = explorer.children(node, keep=True)
         found.nodes += 1
+        if tracker is not None and found.nodes % REPORT_EVERY == 0:
+            tracker.diving(node.depth)
         spend(
             limit.deadline,
             COSTS["node"] + COSTS["operator"] * (graph.applications - applications),

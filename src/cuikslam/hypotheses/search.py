@@ -32,6 +32,7 @@ from cuikslam.hypotheses.dive import Dive, dive, keep_proof, prove_leaf
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.finish import Rank, finish_search
 from cuikslam.hypotheses.problem import build_problem
+from cuikslam.hypotheses.progress import ProgressTracker
 from cuikslam.hypotheses.tally import Tally
 from cuikslam.hypotheses.tree import Node, SearchLimit, stop_reason
 from cuikslam.log.records import Log
@@ -63,6 +64,8 @@ NOT_SEARCH_OPTIONS = {
 says so rather than ignore them)."""
 MAINTAIN_EVERY = 1024
 """Node expansions between two looks at the shared graph's housekeeping."""
+REPORT_EVERY = 256
+"""Node expansions between two progress reports (:class:`.progress.ProgressTracker`)."""
 
 
 @dataclass
@@ -80,16 +83,17 @@ def explore(
     budget: SearchLimit,
     keep: int,
     on_survivor: Callable[[Node], None] | None = None,
-    progress: Callable[[int, int], None] | None = None,
+    tracker: ProgressTracker | None = None,
     reserve: int = 0,
 ) -> _Outcome:
     """Depth-first search of the subtree of ``start`` (of each start node in turn).
 
     Every survivor is counted (and passed to ``on_survivor``); the ``keep`` best-ranked are
-    returned, and the ``reserve`` next ones apart. A budget stop returns the pending
-    subtrees as ``unexplored``; so does Ctrl-C, which also stops the budget's meter, so
-    that the stages after the search stop at once and the result (with its envelope) is
-    returned.
+    returned, and the ``reserve`` next ones apart. ``tracker`` (one root only) hears of
+    every survivor and of the pending subtrees every ``REPORT_EVERY`` expansions. A
+    budget stop returns the pending subtrees as ``unexplored``; so does Ctrl-C, which also
+    stops the budget's meter, so that the stages after the search stop at once and the
+    result (with its envelope) is returned.
     """
     stats = explorer.stats
     stack = start[::-1] if isinstance(start, list) else [start]
@@ -117,9 +121,11 @@ def explore(
         stats.peak_frontier = max(stats.peak_frontier, len(stack))
         if expanded > before and expanded % MAINTAIN_EVERY == 0:
             stack, survivors = _maintain(explorer, stack, survivors)
-            if progress is not None:
-                progress(int(1000 * done), 1000)
+        if tracker is not None and expanded > before and expanded % REPORT_EVERY == 0:
+            tracker.report(stack, done)
     stats.explored_fraction = min(1.0, done)
+    if tracker is not None:
+        tracker.report(stack, min(1.0, done))
     ranked = _best(explorer, survivors, keep + reserve)
     return _Outcome(ranked[:keep], stack if reason else [], reason, ranked[keep:])
 
@@ -214,7 +220,12 @@ def solve_unknown(
         ``max_nodes`` (node expansions after which it stops, incomplete) and
         ``local_frame``. Its budget is ``deadline``.
     progress : callable, optional
-        Called with (done, total) as the explored share of the tree grows.
+        Called with (done, total) as the search advances: the readings decided (associated
+        alike by every survivor found and every subtree still pending) of those to decide.
+        A callable that takes a third argument also gets a
+        :class:`~.progress.SearchProgress` (survivors found and proven, an upper bound on
+        their number, subtrees pending), and the dive's depth while it looks for a first
+        hypothesis.
     deadline : Budget, optional
         The budget at which the search stops, incomplete (None: no limit).
     on_survivor : callable, optional
@@ -258,20 +269,23 @@ def solve_unknown(
     root = explorer.root()
     tally = Tally(explorer, on_survivor)
     tally.envelope.set_root(root)
+    tracker = None if progress is None else ProgressTracker(problem, progress)
+    found = tally.add if tracker is None else _both(tally.add, tracker.survivor)
     outcome = _Outcome([], [], None)
     keep = max(1, options.max_hypotheses)
     if root is not None:
         limit = SearchLimit(SCHEDULE.share(deadline, "walk"), max_nodes)
-        early = dive(explorer, root, SearchLimit(SCHEDULE.share(limit.deadline, "dive"), max_nodes))
-        proof = prove_leaf(explorer, early, prove)
-        outcome = explore(explorer, root, limit, keep, tally.add, progress, reserve=keep)
+        diving = SearchLimit(SCHEDULE.share(limit.deadline, "dive"), max_nodes)
+        early = dive(explorer, root, diving, tracker=tracker)
+        proof = _proven(explorer, early, prove, tracker)
+        outcome = explore(explorer, root, limit, keep, found, tracker, reserve=keep)
         explorer.expansions.clear()  # what the search did not take back: its memory
         if outcome.stop_reason is not None and not outcome.survivors and not early.finished:
             # nothing found: the stages after the search have nothing to decide, so the
             # dive goes on with what they would have had (less a reserve for its leaf)
             more = SearchLimit(SCHEDULE.share(deadline, "walk"), max_nodes)
-            early = dive(explorer, root, more, early)
-            proof = proof or prove_leaf(explorer, early, prove)
+            early = dive(explorer, root, more, early, tracker=tracker)
+            proof = proof or _proven(explorer, early, prove, tracker)
         _join_dive(explorer, tally, outcome, early, keep)
     else:
         proof = None
@@ -280,11 +294,32 @@ def solve_unknown(
         tally.envelope.add(node)
     solution = finish_search(
         log, explorer, tally, outcome.survivors, unexplored, outcome.stop_reason, options,
-        progress, start, messages, rank=rank, reserve=outcome.reserve, unexplored_covered=True,
+        None, start, messages, rank=rank, reserve=outcome.reserve, unexplored_covered=True,
     )  # fmt: skip
     if proof is not None:
         keep_proof(solution, proof)
     return solution
+
+
+def _both(first: Callable[[Node], None], second: Callable[[Node], None]) -> Callable[[Node], None]:
+    def call(node: Node) -> None:
+        first(node)
+        second(node)
+
+    return call
+
+
+def _proven(
+    explorer: Explorer,
+    early: Dive,
+    prove: Callable[[Hypothesis], None] | None,
+    tracker: ProgressTracker | None,
+) -> Hypothesis | None:
+    """:func:`.dive.prove_leaf`, the proof counted by ``tracker``."""
+    proof = prove_leaf(explorer, early, prove)
+    if proof is not None and tracker is not None:
+        tracker.proven = 1
+    return proof
 
 
 def _join_dive(explorer: Explorer, tally: Tally, outcome: _Outcome, early: Dive, keep: int) -> None:
