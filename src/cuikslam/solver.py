@@ -123,7 +123,10 @@ def solve(
     options : SolveOptions, optional
         The options (defaults: ``SolveOptions()``).
     progress : callable, optional
-        Called with (done, total) as a long solve advances.
+        Called with (done, total) as a long solve advances; with unknown correspondence,
+        the readings decided of those to decide, and a
+        :class:`~cuikslam.hypotheses.progress.SearchProgress` as a third argument when
+        the callable takes one (see :func:`~cuikslam.hypotheses.solve_unknown`).
     on_survivor : callable, optional
         With unknown correspondence, called with the assignment of every survivor of the
         search as it is found (see :func:`~cuikslam.hypotheses.solve_unknown`): all of
