@@ -77,6 +77,29 @@ def test_a_decided_reading_stays_decided_and_the_truth_agrees(world: World) -> N
     assert searched[-1].found >= solution.statistics["survivors"]
 
 
+@settings(max_examples=8, deadline=None, derandomize=True, suppress_health_check=HEALTH)
+@given(world=worlds(**SEARCHED))
+def test_what_a_cut_search_reports_decided_holds_for_the_whole_search(world: World) -> None:
+    """A search cut at a node budget: every reading its reports call decided is associated
+    alike by every survivor of the complete search and by the truth, and its upper bound
+    holds their number."""
+    log = world.log("none")
+    assume(log.has_unknown_correspondence)
+    note("\n".join(world.lines("none")))
+    whole = solve_unknown(log, consistency="hull", max_hypotheses=10_000)
+    assume(whole.complete)
+    truth = associations(list(world.truth.assignment), set())
+    rows = [associations(h.assignment, set()) for h in whole.hypotheses]
+    for cut in (1, 2, 3, 5, 8, 13):
+        reports, _ = _reports(log, consistency="hull", max_nodes=cut)
+        for status in reports:
+            if status.stage == "dive":
+                continue
+            for i in status.decided_positions:
+                assert all(row[i] == truth[i] for row in rows), (cut, i, status)
+            assert whole.statistics["survivors"] <= 10**status.upper_log10 * (1 + 1e-9)
+
+
 def test_the_seed_experiment_reports_its_one_ambiguous_reading() -> None:
     """13 readings, 2 survivors that differ in one: 12 decided at the end, and the upper
     bound is then the count itself."""
