@@ -219,3 +219,31 @@ def test_the_search_takes_back_the_dive_s_path() -> None:
         solution = solve_unknown(log, consistency="hull")
     assert solution.complete
     assert sum(taken) >= len(log.observations)
+
+
+def test_the_kept_expansions_stop_at_their_memory_cap() -> None:
+    """Past ``MAX_KEPT_BYTES`` of children's overlays the dive keeps no more expansions
+    (the whole Victoria Park run peaked at 5.2 GB without a cap) and the search expands
+    those nodes itself: the same result, fewer expansions taken back."""
+    from cuikslam.hypotheses import expansions
+
+    log, _ = simulate_random_world(
+        seed=42, n_poses=60, n_landmarks=15, size=(30.0, 20.0), max_range=6.0, unknown=True
+    )
+    taken: list[bool] = []
+    original = Expansions.take
+
+    def counting(self, node, stats):
+        out = original(self, node, stats)
+        taken.append(out is not None)
+        return out
+
+    limit = {"consistency": "hull"}
+    with mock.patch.object(Expansions, "take", counting):
+        whole = solve_unknown(log, **limit)
+        kept_all = sum(taken)
+        taken.clear()
+        with mock.patch.object(expansions, "MAX_KEPT_BYTES", 20_000):
+            capped = solve_unknown(log, **limit)
+    assert 0 < sum(taken) < kept_all
+    assert _without_work(whole) == _without_work(capped)

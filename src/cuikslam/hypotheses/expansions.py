@@ -21,6 +21,10 @@ __all__ = ["MAX_KEPT", "Expansions"]
 
 MAX_KEPT = 50_000
 """Expansions kept at most (each holds its children's overlays)."""
+MAX_KEPT_BYTES = 1 << 30
+"""Bytes of children's overlays kept at most: on the whole Victoria Park run (1,449 poses)
+the dive's 15,860 expansions made the solve peak at 5.2 GB (680 MB before the dive kept
+them); past this the search expands the nodes again (the same boxes, more time)."""
 COUNTED = [f.name for f in fields(SearchStatistics) if f.type in ("int", int)]
 
 
@@ -38,6 +42,8 @@ class Expansions:
 
     def __init__(self) -> None:
         self._kept: dict[int, _Kept] = {}
+        self._bytes = 0
+        """Bytes of the kept children's overlays (shared arrays counted with each)."""
 
     def __len__(self) -> int:
         return len(self._kept)
@@ -51,8 +57,11 @@ class Expansions:
         after: SearchStatistics,
     ) -> None:
         """Keep ``node``'s expansion; ``before`` and ``after`` are the statistics around it."""
-        if len(self._kept) >= MAX_KEPT or id(node) in self._kept:
+        size = sum(c.overlay.nbytes for c in children)
+        full = len(self._kept) >= MAX_KEPT or self._bytes + size > MAX_KEPT_BYTES
+        if full or id(node) in self._kept:
             return
+        self._bytes += size
         counts = {n: getattr(after, n) - getattr(before, n) for n in COUNTED}
         counted = {n: c for n, c in counts.items() if c}
         self._kept[id(node)] = _Kept(node, children, options, counted)
@@ -69,6 +78,7 @@ class Expansions:
         if kept is None or kept.node is not node:
             return None
         del self._kept[id(node)]
+        self._bytes -= sum(c.overlay.nbytes for c in kept.children)
         for name, count in kept.counts.items():
             setattr(stats, name, getattr(stats, name) + count)
         return kept.children, kept.options
@@ -86,6 +96,8 @@ class Expansions:
             children = [new[id(c)] for c in k.children]
             kept[id(node)] = replace(k, node=node, children=children)
         self._kept = kept
+        self._bytes = sum(c.overlay.nbytes for k in kept.values() for c in k.children)
 
     def clear(self) -> None:
         self._kept.clear()
+        self._bytes = 0
