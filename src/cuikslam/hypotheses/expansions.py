@@ -24,7 +24,8 @@ MAX_KEPT = 50_000
 MAX_KEPT_BYTES = 1 << 30
 """Bytes of children's overlays kept at most: on the whole Victoria Park run (1,449 poses)
 the dive's 15,860 expansions made the solve peak at 5.2 GB (680 MB before the dive kept
-them); past this the search expands the nodes again (the same boxes, more time)."""
+them); past this the search (and the dive, when it comes back to a node) expands the
+nodes again: the same boxes, more work, so a budget that binds may stop elsewhere."""
 COUNTED = [f.name for f in fields(SearchStatistics) if f.type in ("int", int)]
 
 
