@@ -23,6 +23,7 @@ from cuikslam.hypotheses.expansions import Expansions
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.tree import SearchLimit
+from cuikslam.log.records import Log
 from cuikslam.results.association import partition
 from cuikslam.results.io import solution_to_json
 from cuikslam.results.solution import PROVEN, Solution
@@ -201,13 +202,15 @@ def test_the_search_taking_back_the_dive_s_expansions_gives_the_same_result(
     check_kept_expansions(world, naming)
 
 
-def test_the_search_takes_back_the_dive_s_path() -> None:
-    """On a 60-pose sparse world the dive's path is as long as the log's readings, and the
-    search takes back every expansion on it instead of making it again."""
-    log, _ = simulate_random_world(
+def _sparse_60() -> Log:
+    """A 60-pose sparse world without landmark ids."""
+    return simulate_random_world(
         seed=42, n_poses=60, n_landmarks=15, size=(30.0, 20.0), max_range=6.0, unknown=True
-    )
-    taken: list[bool] = []
+    )[0]
+
+
+def _counting_take(taken: list[bool]):
+    """``Expansions.take`` that appends to ``taken`` whether it gave an expansion back."""
     original = Expansions.take
 
     def counting(self, node, stats):
@@ -215,7 +218,15 @@ def test_the_search_takes_back_the_dive_s_path() -> None:
         taken.append(out is not None)
         return out
 
-    with mock.patch.object(Expansions, "take", counting):
+    return mock.patch.object(Expansions, "take", counting)
+
+
+def test_the_search_takes_back_the_dive_s_path() -> None:
+    """On a 60-pose sparse world the dive's path is as long as the log's readings, and the
+    search takes back every expansion on it instead of making it again."""
+    log = _sparse_60()
+    taken: list[bool] = []
+    with _counting_take(taken):
         solution = solve_unknown(log, consistency="hull")
     assert solution.complete
     assert sum(taken) >= len(log.observations)
@@ -227,19 +238,10 @@ def test_the_kept_expansions_stop_at_their_memory_cap() -> None:
     those nodes itself: the same result, fewer expansions taken back."""
     from cuikslam.hypotheses import expansions
 
-    log, _ = simulate_random_world(
-        seed=42, n_poses=60, n_landmarks=15, size=(30.0, 20.0), max_range=6.0, unknown=True
-    )
+    log = _sparse_60()
     taken: list[bool] = []
-    original = Expansions.take
-
-    def counting(self, node, stats):
-        out = original(self, node, stats)
-        taken.append(out is not None)
-        return out
-
     limit = {"consistency": "hull"}
-    with mock.patch.object(Expansions, "take", counting):
+    with _counting_take(taken):
         whole = solve_unknown(log, **limit)
         kept_all = sum(taken)
         taken.clear()
