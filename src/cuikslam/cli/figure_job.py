@@ -40,11 +40,6 @@ PAPER_DPI = 150
 """Pixels per inch of the figure: it is 11 inches wide with two survivors (1,680 pixels,
 240 per inch at a page's 7 inches); drawing it at the library's 200 would add a fifth to
 the drawing the command waits for."""
-PNG_COMPRESS_LEVEL = 1
-"""zlib's level for the PNG the command waits for: 0.03 s to encode the seed's figure
-against 0.15 s at Pillow's default 6, for a file a seventh larger (164 kB against 144 kB)."""
-
-
 @dataclass
 class FigureJob:
     """A figure to draw into ``path``: by ``process`` (None: here, when finishing)."""
@@ -217,11 +212,12 @@ def _main(path: str) -> int:
 
 
 def _write_drawn_png(figure: Figure, path: str) -> None:
-    """Write the canvas as drawn (no new drawing pass), atomically, as ``savefig`` would,
-    but at zlib's fastest level (``PNG_COMPRESS_LEVEL``)."""
+    """Write the canvas as drawn (no new drawing pass), atomically, as
+    :func:`~cuikslam.results.figures.save_figure` would (the same bytes)."""
     from matplotlib.image import imsave
 
     from cuikslam._atomic import atomic_open
+    from cuikslam.results.figures.figure import PNG_COMPRESS_LEVEL
 
     with atomic_open(path, "wb") as stream:
         imsave(

@@ -50,6 +50,9 @@ WIDTH_PANEL_POSES = 60
 _FORMATS = {".png": "png", ".pdf": "pdf", ".svg": "svg"}
 DPI = 200
 """Pixels per inch of the PNG figures: above the 150 a printed figure needs at its size."""
+PNG_COMPRESS_LEVEL = 1
+"""zlib's level for PNG files: the seed's figure (1,680 pixels wide) encodes in 0.03 s
+against 0.15 s at Pillow's default 6, for a file a seventh larger (164 kB, 144 kB)."""
 
 
 def _assignment_text(
@@ -363,8 +366,9 @@ def save_figure(
             f"use one of {', '.join(_FORMATS)}"
         )
     crop = {"bbox_inches": "tight", "pad_inches": 0.1} if tight else {}
+    png = {"pil_kwargs": {"compress_level": PNG_COMPRESS_LEVEL}} if suffix == ".png" else {}
     with atomic_open(path, "wb") as stream:
-        fig.savefig(stream, format=_FORMATS[suffix], dpi=dpi, **crop)
+        fig.savefig(stream, format=_FORMATS[suffix], dpi=dpi, **crop, **png)
     import matplotlib.pyplot as plt
 
     plt.close(fig)
