@@ -13,6 +13,7 @@ import sys
 from unittest import mock
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, assume, given, note, settings
 
 from cuikslam.cli._common import progress_bar
@@ -21,7 +22,7 @@ from cuikslam.hypotheses.progress import SearchProgress, association_keys
 from cuikslam.hypotheses.search import solve_unknown
 from cuikslam.outcome.solution import OUTLIER
 from cuikslam.simulate import simulate_paper
-from worlds import SEARCHED, World, worlds
+from worlds import SEARCHED, SMALL, World, worlds
 
 HEALTH = [HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large]
 
@@ -51,9 +52,8 @@ def _reports(log, **options) -> tuple[list[SearchProgress], object]:
     return reports, solution
 
 
-@settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=HEALTH)
-@given(world=worlds(**SEARCHED))
-def test_a_decided_reading_stays_decided_and_the_truth_agrees(world: World) -> None:
+def check_decided(world: World) -> None:
+    """A decided reading stays decided, and every survivor and the truth agree on it."""
     log = world.log("mixed")
     assume(log.has_unknown_correspondence)
     note("\n".join(world.lines("mixed")))
@@ -77,12 +77,10 @@ def test_a_decided_reading_stays_decided_and_the_truth_agrees(world: World) -> N
     assert searched[-1].found >= solution.statistics["survivors"]
 
 
-@settings(max_examples=8, deadline=None, derandomize=True, suppress_health_check=HEALTH)
-@given(world=worlds(**SEARCHED))
-def test_what_a_cut_search_reports_decided_holds_for_the_whole_search(world: World) -> None:
-    """A search cut at a node budget: every reading its reports call decided is associated
-    alike by every survivor of the complete search and by the truth, and its upper bound
-    holds their number."""
+def check_cuts(world: World, cuts: tuple[int, ...]) -> None:
+    """A search cut at each node budget: every reading its reports call decided is
+    associated alike by every survivor of the complete search and by the truth, and its
+    upper bound holds their number."""
     log = world.log("none")
     assume(log.has_unknown_correspondence)
     note("\n".join(world.lines("none")))
@@ -90,7 +88,7 @@ def test_what_a_cut_search_reports_decided_holds_for_the_whole_search(world: Wor
     assume(whole.complete)
     truth = associations(list(world.truth.assignment), set())
     rows = [associations(h.assignment, set()) for h in whole.hypotheses]
-    for cut in (1, 2, 3, 5, 8, 13):
+    for cut in cuts:
         reports, _ = _reports(log, consistency="hull", max_nodes=cut)
         for status in reports:
             if status.stage == "dive":
@@ -98,6 +96,32 @@ def test_what_a_cut_search_reports_decided_holds_for_the_whole_search(world: Wor
             for i in status.decided_positions:
                 assert all(row[i] == truth[i] for row in rows), (cut, i, status)
             assert whole.statistics["survivors"] <= 10**status.upper_log10 * (1 + 1e-9)
+
+
+@settings(max_examples=8, deadline=None, derandomize=True, suppress_health_check=HEALTH)
+@given(world=worlds(**SEARCHED))
+def test_a_decided_reading_stays_decided_and_the_truth_agrees(world: World) -> None:
+    check_decided(world)
+
+
+@settings(max_examples=5, deadline=None, derandomize=True, suppress_health_check=HEALTH)
+@given(world=worlds(**SEARCHED))
+def test_what_a_cut_search_reports_decided_holds_for_the_whole_search(world: World) -> None:
+    check_cuts(world, (1, 3, 8))
+
+
+@pytest.mark.slow
+@settings(max_examples=150, deadline=None, suppress_health_check=HEALTH)
+@given(world=worlds(**SMALL))
+def test_a_decided_reading_stays_decided_and_the_truth_agrees_many(world: World) -> None:
+    check_decided(world)
+
+
+@pytest.mark.slow
+@settings(max_examples=80, deadline=None, suppress_health_check=HEALTH)
+@given(world=worlds(**SMALL))
+def test_what_a_cut_search_reports_decided_holds_for_the_whole_search_many(world: World) -> None:
+    check_cuts(world, (1, 2, 3, 5, 8, 13, 21))
 
 
 def test_the_seed_experiment_reports_its_one_ambiguous_reading() -> None:
