@@ -40,6 +40,8 @@ PAPER_DPI = 150
 """Pixels per inch of the figure: it is 11 inches wide with two survivors (1,680 pixels,
 240 per inch at a page's 7 inches); drawing it at the library's 200 would add a fifth to
 the drawing the command waits for."""
+
+
 @dataclass
 class FigureJob:
     """A figure to draw into ``path``: by ``process`` (None: here, when finishing)."""
