@@ -11,8 +11,9 @@ options: the work budget ``auto``), in its own process after a warm-up, and the 
 checked against the world's exact truth. Columns:
 
 - ``proven``: a hypothesis proven consistent (a verified witness) is in the result;
-  ``early``: the search's dive proved its leaf before the exhaustive search went on, with
-  the work units and the seconds at that moment (``early work``, ``early s``);
+  ``early``: a leaf was proven before the exhaustive search went on, with the work units
+  and the seconds at that moment (``early work``, ``early s``); ``guess``: that leaf was
+  the guess's (a scan at a time), not the dive's;
 - ``hyps``: hypotheses reported; ``complete``: the search finished; ``truth``: the true
   correspondence is among them;
 - ``envelope``: every pose's envelope box holds the true pose (the answer a user gets
@@ -58,6 +59,7 @@ def _run(seed: int, n_poses: int, world: dict, queue: multiprocessing.Queue) -> 
             "observations": len(log.observations),
             "proven": any(h.status == PROVEN for h in solution.hypotheses),
             "early": bool(stats.get("dive_proven", 0)),
+            "by_guess": bool(stats.get("guess_proven", 0)),
             "early_work": stats.get("dive_proven_work", 0),
             "early_s": solution.timings.get("dive_proven_s"),
             "hypotheses": len(solution.hypotheses),
@@ -88,8 +90,8 @@ def main(argv: list[str] | None = None) -> int:
     world = {**WORLD, "n_landmarks": args.landmarks}
     if args.classes:
         world["classes"] = tuple(args.classes.split(","))
-    header = ("seed", "obs", "proven", "early", "early work", "early s", "hyps", "complete",
-              "truth", "envelope", "work", "wall s", "cpu s", "load")  # fmt: skip
+    header = ("seed", "obs", "proven", "early", "guess", "early work", "early s", "hyps",
+              "complete", "truth", "envelope", "work", "wall s", "cpu s", "load")  # fmt: skip
     print(" ".join(f"{h:>10}" for h in header))
     rows = []
     for seed in range(args.seed, args.seed + args.seeds):
@@ -101,13 +103,14 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(r)
         early_s = "—" if r["early_s"] is None else f"{r['early_s']:.1f}"
         print(f"{r['seed']:>10} {r['observations']:>10} {r['proven']!s:>10} {r['early']!s:>10} "
+              f"{r['by_guess']!s:>10} "
               f"{r['early_work']:>10,} {early_s:>10} {r['hypotheses']:>10} "
               f"{r['complete']!s:>10} {r['truth']!s:>10} {r['envelope']!s:>10} "
               f"{r['work_spent']:>10,} {r['wall_s']:>10.1f} {r['cpu_s']:>10.1f} "
               f"{r['load']:>10.1f}")  # fmt: skip
         sys.stdout.flush()
     n = len(rows)
-    keys = ("proven", "early", "complete", "truth", "envelope")
+    keys = ("proven", "early", "by_guess", "complete", "truth", "envelope")
     counts = {k: sum(r[k] for r in rows) for k in keys}
     print(", ".join(f"{k}: {v}/{n}" for k, v in counts.items()))
     if args.json:

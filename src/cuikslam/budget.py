@@ -293,7 +293,7 @@ def portion(deadline: Budget | None, fraction: float) -> Budget | None:
     return deadline.share(fraction)
 
 
-Stage = Literal["strengthen", "search", "walk", "dive", "bisection", "early_proof", "fit"]
+Stage = Literal["strengthen", "search", "walk", "dive", "guess", "bisection", "early_proof", "fit"]
 """The stages of a solve that get a share of the budget (the fields of :class:`Schedule`
 that are fractions)."""
 
@@ -336,6 +336,10 @@ class Schedule:
     dive: float = 0.6
     """The dive (a leaf early, :mod:`cuikslam.hypotheses.dive`), of the walk's share: the
     exhaustive walk takes back the dive's expansions, so none of it is wasted."""
+    guess: float = 0.5
+    """The guess that decides a scan at a time (:mod:`cuikslam.hypotheses.guess`), of the
+    dive's share; the dive gets what it leaves, and runs only when the guess is not
+    proven."""
     bisection: float = 0.5
     """The survivors' bisection, of what the walk left; the stronger level the rest."""
     early_proof: float = 0.2

@@ -160,7 +160,9 @@ class SharedGraph:
         """Working arrays back to the base."""
         self._checkout(EMPTY_OVERLAY)
 
-    def _apply(self, ids: np.ndarray, touched: np.ndarray, narrowed: np.ndarray) -> Overlay | None:
+    def _apply(
+        self, ids: np.ndarray, touched: np.ndarray, narrowed: np.ndarray, rtol: float | None = None
+    ) -> Overlay | None:
         """See :func:`._kernels.apply`; the overlay shares the current one's unchanged arrays.
 
         The working arrays are put back to the checked-out branch afterwards.
@@ -170,7 +172,7 @@ class SharedGraph:
             self.lo, self.hi, self._saved_lo, self._saved_hi, self.rows, self.kinds,
             self.in_base, self.head, self.entry_factor, self.entry_next, self._queue,
             self._state, self._memory, self._applied, self._mark, cur.idx, cur.rows, ids,
-            touched, narrowed, self.rtol, self.max_rounds, False,
+            touched, narrowed, self.rtol if rtol is None else rtol, self.max_rounds, False,
         )  # fmt: skip
         self.applications += applications
         if Status(status) is Status.INCONSISTENT:
@@ -181,14 +183,18 @@ class SharedGraph:
             rows = cur.rows
         return Overlay(idx, lo, hi, rows)
 
-    def add_rows(self, overlay: Overlay, ids: np.ndarray) -> Overlay | None:
-        """The branch of ``overlay`` plus pool rows ``ids``, propagated from them.
+    def add_rows(
+        self, overlay: Overlay, ids: np.ndarray, rtol: float | None = None
+    ) -> Overlay | None:
+        """The branch of ``overlay`` plus pool rows ``ids``, propagated from them (a
+        variable that shrinks by less than ``rtol`` of its width wakes nobody: the graph's
+        own by default; a larger one stops sooner, as soundly).
 
         Returns the new branch's overlay, or None when its constraints contract to empty
         (a proof). ``overlay`` itself is never changed.
         """
         self._checkout(overlay)
-        return self._apply(ids, ids, _NO_INT)
+        return self._apply(ids, ids, _NO_INT, rtol)
 
     def restrict(
         self, overlay: Overlay, variables: np.ndarray, lo: np.ndarray, hi: np.ndarray

@@ -34,7 +34,7 @@ import numpy as np
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import COSTS, SCHEDULE, Budget, deadline_after, expired, remaining, spend
 from cuikslam.hypotheses.bisection import Bisection, allotment, refute_by_bisection
-from cuikslam.hypotheses.dive import Dive, dive, keep_proof, prove_leaf
+from cuikslam.hypotheses.dive import Dive, early_hypothesis, join_leaf, keep_proof
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.finish import Rank, finish_search
 from cuikslam.hypotheses.outlier_option import OUTLIER
@@ -72,30 +72,6 @@ MAX_BATCH = 8
 
 
 # ------------------------------------------------------------------------- the client
-def _join_dive(
-    explorer: Explorer,
-    tally: Tally,
-    found: list[Node],
-    unexplored: list[list[int]],
-    early: Dive,
-    keep: int,
-) -> list[Node]:
-    """The dive's statistics, and its leaf among the survivors when it lies under a prefix
-    the cluster left unexplored (as :func:`.search.solve_unknown` does in one process)."""
-    stats = explorer.stats
-    stats.dive_nodes, stats.dive_discrepancies = early.nodes, early.discrepancies
-    leaf = early.leaf
-    if leaf is None or not unexplored:
-        return found
-    decisions = leaf.decisions()
-    if not any(decisions[: len(u)] == u for u in unexplored):
-        return found
-    tally.add(leaf)
-    stats.survivors += 1
-    stats.dive_leaf_added = 1
-    return sorted([*found, leaf], key=lambda n: _rank_key(explorer, n))[:keep]
-
-
 def _epoch(deadline: Budget | None) -> float | None:
     """The wall-clock cap of ``deadline`` as epoch seconds, for tasks on other machines
     (None without one). The work of the tasks is bounded by their quanta, and counted on
@@ -202,8 +178,8 @@ def search_distributed(
     early = Dive()
     proof = None
     if root is not None:
-        early = dive(explorer, root, SearchLimit(SCHEDULE.share(searching, "dive"), max_nodes))
-        proof = prove_leaf(explorer, early, prove)
+        diving = SearchLimit(SCHEDULE.share(searching, "dive"), max_nodes)
+        early, proof = early_hypothesis(explorer, root, diving, prove)
         prefixes = run.split(root, SPLIT_PER_SLOT * slots)
         split_s = time.perf_counter() - start
         task = TaskOptions(
@@ -219,7 +195,8 @@ def search_distributed(
         merge_s = time.perf_counter() - merge_start
     stats = explorer.stats
     stats.explored_fraction = min(1.0, run.done)
-    found = _join_dive(explorer, tally, found, run.unexplored(), early, keep)
+    if join_leaf(explorer, tally, early, run.unexplored()):
+        found = sorted([*found, early.leaf], key=lambda n: _rank_key(explorer, n))[:keep]
     if on_unexplored is not None:
         on_unexplored(sorted(run.left))
     finish_start = time.perf_counter()

@@ -24,14 +24,28 @@ import time
 from collections.abc import Callable
 from dataclasses import asdict, fields
 
-from cuikslam.budget import COSTS, spend
+from cuikslam.budget import COSTS, SCHEDULE, spend
 from cuikslam.hypotheses.explorer import Explorer
+from cuikslam.hypotheses.guess import first_guess
 from cuikslam.hypotheses.progress import ProgressTracker
 from cuikslam.hypotheses.survivors import hypothesis_of
+from cuikslam.hypotheses.tally import Tally
 from cuikslam.hypotheses.tree import Node, SearchLimit
 from cuikslam.outcome.solution import PROVEN, Hypothesis, Solution
 
-__all__ = ["MAX_DISCREPANCIES", "Dive", "dive", "keep_proof", "prove_leaf"]
+__all__ = [
+    "MAX_DISCREPANCIES",
+    "Dive",
+    "dive",
+    "early_hypothesis",
+    "join_leaf",
+    "keep_proof",
+    "prove_leaf",
+]
+
+Prove = Callable[[Hypothesis], None]
+"""Proves a hypothesis consistent when it can (sets its status and witness): see ``prove``
+of :func:`.search.solve_unknown`."""
 
 MAX_DISCREPANCIES = 2
 """Departures from the children's order allowed on a path, at most."""
@@ -159,14 +173,52 @@ def _probe(
     return False
 
 
-def prove_leaf(
-    explorer: Explorer, early: Dive, prove: Callable[[Hypothesis], None] | None
-) -> Hypothesis | None:
-    """The dive's leaf as a hypothesis, when ``prove`` proves it consistent (else None):
-    see ``prove`` of :func:`.search.solve_unknown`."""
-    if early.leaf is None or prove is None:
+def early_hypothesis(
+    explorer: Explorer,
+    root: Node,
+    limit: SearchLimit,
+    prove: Prove | None,
+    tracker: ProgressTracker | None = None,
+) -> tuple[Dive, Hypothesis | None]:
+    """A leaf before the exhaustive search, and its proof when ``prove`` proves it.
+
+    The guess (:func:`.guess.first_guess`, a scan at a time, on its share of ``limit``)
+    comes first; when the witness search proves its leaf, that is the early hypothesis.
+    Otherwise the dive looks for a leaf of the search itself within what is left of
+    ``limit``, and its leaf is proven when it differs from the guess. Without ``prove``
+    there is no guess (its leaf would prove nothing).
+
+    Returns
+    -------
+    Dive, Hypothesis or None
+        The leaf found (that of the guess when it was proven: it then holds no dive's
+        work) and the proven hypothesis (None: none proven).
+    """
+    stats = explorer.stats
+    guessed = None
+    if prove is not None:
+        share = SearchLimit(SCHEDULE.share(limit.deadline, "guess"), limit.max_nodes)
+        guessed = first_guess(explorer, root, share)
+        stats.guess_scans, stats.guess_repairs = guessed.scans, guessed.repairs
+        if guessed.leaf is not None:
+            proof = prove_leaf(explorer, guessed.leaf, prove)
+            if proof is not None:
+                stats.guess_proven = 1
+                found = Dive()
+                found.leaf = guessed.leaf
+                return found, proof
+    early = dive(explorer, root, limit, tracker=tracker)
+    if guessed is not None and guessed.leaf is not None and early.leaf is not None:
+        if early.leaf.decisions() == guessed.leaf.decisions():
+            return early, None  # its proof failed already
+    return early, prove_leaf(explorer, early.leaf, prove)
+
+
+def prove_leaf(explorer: Explorer, leaf: Node | None, prove: Prove | None) -> Hypothesis | None:
+    """``leaf`` as a hypothesis, when ``prove`` proves it consistent (else None)."""
+    if leaf is None or prove is None:
         return None
-    hypothesis = hypothesis_of(explorer, early.leaf)
+    hypothesis = hypothesis_of(explorer, leaf)
     prove(hypothesis)
     if hypothesis.status != PROVEN:
         return None
@@ -175,6 +227,25 @@ def prove_leaf(
         explorer.stats.dive_proven_work = round(explorer.deadline.meter.spent)
     explorer.proven_at = time.perf_counter()
     return hypothesis
+
+
+def join_leaf(explorer: Explorer, tally: Tally, early: Dive, unexplored: list[list[int]]) -> bool:
+    """Count the early leaf among the survivors when it lies under one of the
+    ``unexplored`` prefixes (the search never reached it; a complete search reached it
+    itself, or refuted it: then it was no proven leaf). Also records the dive's
+    statistics. True when it was added."""
+    stats = explorer.stats
+    stats.dive_nodes, stats.dive_discrepancies = early.nodes, early.discrepancies
+    leaf = early.leaf
+    if leaf is None or not unexplored:
+        return False
+    decisions = leaf.decisions()
+    if not any(decisions[: len(u)] == u for u in unexplored):
+        return False
+    tally.add(leaf)
+    stats.survivors += 1
+    stats.dive_leaf_added = 1
+    return True
 
 
 def keep_proof(solution: Solution, proof: Hypothesis) -> None:

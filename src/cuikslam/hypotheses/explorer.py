@@ -87,7 +87,7 @@ class Explorer:
         """Scan (a pose, or a pose and a sensor offset) -> its decisions, in order."""
         for k, d in enumerate(problem.decisions):
             self._decisions_of.setdefault(d.scan, []).append(k)
-        self._done_xs, self._done_radii = self._completed_poses()
+        self._done_xs, self._done_radii, self._done_before = self._completed_poses()
         self.ambiguity = AmbiguityLp(problem.pose_x, len(problem.lo), rtol, problem.sensor_x)
         self.leaf_parts = LEAF_BISECTION_PARTS if problem.has_sensor else 0
         """Parts of the bisection of each leaf (0: leaves are not bisected)."""
@@ -105,16 +105,21 @@ class Explorer:
         )  # fmt: skip
 
     # ---------------------------------------------------------------- precomputed
-    def _completed_poses(self) -> tuple[list[np.ndarray], list[np.ndarray]]:
-        """x and radius variables of the poses whose scans are complete before decision k."""
+    def _completed_poses(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """x and radius variables of the poses in the order their scans are complete
+        (none without negative information), and how many are complete before each
+        decision: those before decision k are the first ``before[k]``."""
         p = self.problem
-        xs, radii = [], []
+        poses, before = p.completions()
+        if not p.has_sensor:
+            poses, before = [], np.zeros_like(before)
         tainted = p.outlier.tainted if p.outlier is not None else frozenset()
-        for k in range(len(p.decisions) + 1):
-            poses = [q for q in p.completed_before(k) if q not in tainted] if p.has_sensor else []
-            xs.append(np.array([p.pose_x[q] for q in poses], dtype=np.int64))
-            radii.append(np.array([p.radius_var[q] for q in poses], dtype=np.int64))
-        return xs, radii
+        if tainted:
+            kept = np.cumsum([0] + [q not in tainted for q in poses])
+            poses, before = [q for q in poses if q not in tainted], kept[before]
+        xs = np.array([p.pose_x[q] for q in poses], dtype=np.int64)
+        radii = np.array([p.radius_var[q] for q in poses], dtype=np.int64)
+        return xs, radii, before
 
     # ---------------------------------------------------------------- landmarks
     def landmark_xs(self, node: Node) -> np.ndarray:
@@ -171,7 +176,7 @@ class Explorer:
         if self._breaks_class_prior(node):
             return None
         if self.problem.has_sensor:
-            node = self._unseen_scans(node, self.problem.complete_at_root())
+            node = self.unseen_scans(node, self.problem.complete_at_root())
         return node
 
     def children(
@@ -248,7 +253,7 @@ class Explorer:
         xs = all_xs[kept]
         passed = graph.gate(node.overlay, d.sensor_x, xs, d.bearing_var, d.range_var)
         stats.gated += int(np.count_nonzero(~passed))
-        order = self._nearest_first(node, d, xs[passed])
+        order = self.nearest_first(node, d, xs[passed])
         ids = graph.intern(observation_rows(p, d, xs[passed][order]))
         out: list[Node] = []
         for i, number in enumerate(np.array(kept, dtype=np.int64)[passed][order].tolist()):
@@ -268,32 +273,18 @@ class Explorer:
             child = self._after_decision(made)
             if child is not None:
                 out.append(child)
-        new: Node | None = Node(
-            k + 1,
-            node.overlay,
-            (*node.blocks, k),
-            (len(all_xs), node.assigned),
-            lp_depth=node.lp_depth,
-            lp_gap=node.lp_gap,
-            outliers=node.outliers,
-        )
-        prior = p.class_priors.get(d.landmark_class)
-        if prior is not None and prior.at_most is not None and len(numbers) >= prior.at_most:
-            stats.refuted_by_class_prior += 1
-            new = None
-        region = region_of(p, d.landmark_class) if p.outlier is not None else None
-        if new is not None and region is not None:  # slots are free with a declaration
-            overlay = graph.restrict(new.overlay, np.array([d.slot_x, d.slot_x + 1]), *region)
-            stats.refuted_by_class_prior += overlay is None
-            new = None if overlay is None else replace(new, overlay=overlay)
-        done_xs, done_radii = self._done_xs[k], self._done_radii[k]
-        if node.outliers and len(done_xs):  # no UNSEEN on a pose with an outlier
-            keep = ~np.isin(done_xs, [p.decisions[j].pose_x for j in node.outliers])
-            done_xs, done_radii = done_xs[keep], done_radii[keep]
-        if new is not None and p.has_sensor and len(done_xs):
-            overlay = self._add_unseen(new.overlay, done_xs, done_radii, np.array([d.slot_x]))
-            new = None if overlay is None else replace(new, overlay=overlay)
-        if new is not None:
+        new: Node | None = None
+        overlay = self.new_landmark(node.overlay, k, len(numbers), node.outliers)
+        if overlay is not None:
+            new = Node(
+                k + 1,
+                overlay,
+                (*node.blocks, k),
+                (len(all_xs), node.assigned),
+                lp_depth=node.lp_depth,
+                lp_gap=node.lp_gap,
+                outliers=node.outliers,
+            )
             new = self._after_decision(new)
         if new is not None:
             out.append(new)
@@ -306,7 +297,35 @@ class Explorer:
         share = node.share / options
         return [replace(c, share=share) for c in out], options
 
-    def _nearest_first(self, node: Node, d: Decision, xs: np.ndarray) -> np.ndarray:
+    def new_landmark(
+        self, overlay: Overlay, k: int, of_class: int, outliers: tuple[int, ...] = ()
+    ) -> Overlay | None:
+        """``overlay`` with decision ``k``'s slot taken as a new landmark, when ``of_class``
+        landmarks of its class exist already: the class prior's count and region, and
+        negative information from every pose whose scan is complete (but those of the
+        decisions in ``outliers``); None when that is proven impossible."""
+        p, graph, stats = self.problem, self.graph, self.stats
+        d = p.decisions[k]
+        prior = p.class_priors.get(d.landmark_class)
+        if prior is not None and prior.at_most is not None and of_class >= prior.at_most:
+            stats.refuted_by_class_prior += 1
+            return None
+        region = region_of(p, d.landmark_class) if p.outlier is not None else None
+        if region is not None:  # slots are free with a declaration
+            overlay = graph.restrict(overlay, np.array([d.slot_x, d.slot_x + 1]), *region)
+            if overlay is None:
+                stats.refuted_by_class_prior += 1
+                return None
+        n_done = self._done_before[k]
+        done_xs, done_radii = self._done_xs[:n_done], self._done_radii[:n_done]
+        if outliers and len(done_xs):  # no UNSEEN on a pose with an outlier
+            keep = ~np.isin(done_xs, [p.decisions[j].pose_x for j in outliers])
+            done_xs, done_radii = done_xs[keep], done_radii[keep]
+        if p.has_sensor and len(done_xs):
+            return self._add_unseen(overlay, done_xs, done_radii, np.array([d.slot_x]))
+        return overlay
+
+    def nearest_first(self, node: Node, d: Decision, xs: np.ndarray) -> np.ndarray:
         """The order in which to explore the candidate landmarks at x ``xs``: nearest first
         to where the observation puts the landmark (its slot's box), centre to centre.
 
@@ -329,11 +348,11 @@ class Explorer:
         completes its pose's scan, then windows up to its pose narrowed in a local frame
         (more of them once the scan is decided)."""
         d = self.problem.decisions[child.depth - 1]
-        if child.assigned[0] != OUTLIER and self._too_close(child, child.assigned[0]):
+        if child.assigned[0] != OUTLIER and self.too_close(child, child.assigned[0]):
             self.stats.refuted_by_class_prior += 1
             return None
         if self.problem.has_sensor and d.completes_scan:
-            child = self._unseen_scans(child, [d.pose])
+            child = self.unseen_scans(child, [d.pose])
         if child is None or self.local is None:
             return child
         if self.local.refutes(self.graph, child.overlay, d.pose, d.completes_scan):
@@ -350,12 +369,12 @@ class Explorer:
                 self.stats.refuted_by_class_prior += 1
                 return True
         lo, hi = self.graph.values(node.overlay, np.concatenate([p.named_x, p.named_x + 1]))
-        if np.any(lo > hi) or any(self._too_close(node, n) for n in range(self.n_named)):
+        if np.any(lo > hi) or any(self.too_close(node, n) for n in range(self.n_named)):
             self.stats.refuted_by_class_prior += 1
             return True
         return False
 
-    def _too_close(self, node: Node, number: int) -> bool:
+    def too_close(self, node: Node, number: int) -> bool:
         """True when landmark ``number`` of ``node`` is proven closer to another landmark of
         its class than the class prior's ``min_separation``: the farthest points of their
         boxes are nearer than that (compared with a relative margin far above rounding)."""
@@ -378,7 +397,7 @@ class Explorer:
         d = prior.min_separation
         return bool(np.any(far2 * (1 + 1e-9) < d * d * (1 - 1e-9)))
 
-    def _unseen_scans(self, node: Node, poses: list[int]) -> Node | None:
+    def unseen_scans(self, node: Node, poses: list[int]) -> Node | None:
         """Add UNSEEN constraints between each of ``poses`` (whose scans ``node`` has fully
         decided) and every landmark it did not see; None when that proves ``node`` empty."""
         p = self.problem

@@ -134,10 +134,18 @@ class Problem:
         undecided = {d.pose for d in self.decisions}
         return [p for p in self.pose_x if p not in undecided]
 
-    def completed_before(self, k: int) -> list[int]:
-        """Poses whose scans are complete before decision ``k``."""
+    def completions(self) -> tuple[list[int], np.ndarray]:
+        """Poses in the order their scans are complete (those of :meth:`complete_at_root`
+        first), and how many of them are complete before each decision (and after the
+        last): the poses complete before decision ``k`` are the first ``before[k]``."""
         done = self.complete_at_root()
-        return done + [d.pose for d in self.decisions[:k] if d.completes_scan]
+        before = np.empty(len(self.decisions) + 1, dtype=np.int64)
+        for k, d in enumerate(self.decisions):
+            before[k] = len(done)
+            if d.completes_scan:
+                done.append(d.pose)
+        before[-1] = len(done)
+        return done, before
 
 
 def build_problem(log: Log) -> Problem:

@@ -28,7 +28,7 @@ import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import COSTS, SCHEDULE, Budget, spend
-from cuikslam.hypotheses.dive import Dive, dive, keep_proof, prove_leaf
+from cuikslam.hypotheses.dive import Dive, dive, early_hypothesis, join_leaf, keep_proof, prove_leaf
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.finish import Rank, finish_search
 from cuikslam.hypotheses.problem import build_problem
@@ -75,6 +75,8 @@ class _Outcome:
     stop_reason: str | None
     reserve: list[Node] = field(default_factory=list)
     """The next best-ranked survivors, to take the place of kept ones refuted later."""
+    pinned: list[Node] = field(default_factory=list)
+    """The nodes given as ``pinned``, their overlays re-expressed (see :func:`explore`)."""
 
 
 def explore(
@@ -85,6 +87,7 @@ def explore(
     on_survivor: Callable[[Node], None] | None = None,
     tracker: ProgressTracker | None = None,
     reserve: int = 0,
+    pinned: list[Node] | None = None,
 ) -> _Outcome:
     """Depth-first search of the subtree of ``start`` (of each start node in turn).
 
@@ -93,11 +96,14 @@ def explore(
     every survivor and of the pending subtrees every ``REPORT_EVERY`` expansions. A
     budget stop returns the pending subtrees as ``unexplored``; so does Ctrl-C, which also
     stops the budget's meter, so that the stages after the search stop at once and the
-    result (with its envelope) is returned.
+    result (with its envelope) is returned. ``pinned`` nodes (the dive's leaf) stay valid:
+    the shared graph's housekeeping re-expresses their overlays, and the outcome holds
+    them as they are after it.
     """
     stats = explorer.stats
     stack = start[::-1] if isinstance(start, list) else [start]
     survivors: list[Node] = []
+    pinned = list(pinned or [])
     done = 0.0
     expanded = 0
     reason = None
@@ -120,14 +126,14 @@ def explore(
             survivors = _best(explorer, survivors, keep + reserve)
         stats.peak_frontier = max(stats.peak_frontier, len(stack))
         if expanded > before and expanded % MAINTAIN_EVERY == 0:
-            stack, survivors = _maintain(explorer, stack, survivors)
+            stack, survivors, pinned = _maintain(explorer, stack, survivors, pinned)
         if tracker is not None and expanded > before and expanded % REPORT_EVERY == 0:
             tracker.report(stack, done)
     stats.explored_fraction = min(1.0, done)
     if tracker is not None:
         tracker.report(stack, min(1.0, done))
     ranked = _best(explorer, survivors, keep + reserve)
-    return _Outcome(ranked[:keep], stack if reason else [], reason, ranked[keep:])
+    return _Outcome(ranked[:keep], stack if reason else [], reason, ranked[keep:], pinned)
 
 
 def _step(
@@ -168,16 +174,21 @@ def _step(
 
 
 def _maintain(
-    explorer: Explorer, stack: list[Node], survivors: list[Node]
-) -> tuple[list[Node], list[Node]]:
+    explorer: Explorer, stack: list[Node], survivors: list[Node], pinned: list[Node]
+) -> tuple[list[Node], list[Node], list[Node]]:
     """Let the shared graph rebase and compact; the nodes re-expressed, same boxes (those
     of the dive's kept expansions too, each node object once, so that a node on the stack
     is still the one its kept expansion names)."""
-    unique = {id(n): n for n in [*stack, *survivors, *explorer.expansions.nodes()]}
+    held = [*stack, *survivors, *pinned, *explorer.expansions.nodes()]
+    unique = {id(n): n for n in held}
     overlays = explorer.graph.maintain([n.overlay for n in unique.values()])
     new = {key: replace(n, overlay=o) for (key, n), o in zip(unique.items(), overlays, strict=True)}
     explorer.expansions.renamed(new)
-    return [new[id(n)] for n in stack], [new[id(n)] for n in survivors]
+    return (
+        [new[id(n)] for n in stack],
+        [new[id(n)] for n in survivors],
+        [new[id(n)] for n in pinned],
+    )
 
 
 def _rank_key(explorer: Explorer, node: Node) -> tuple[int, int, int, float]:
@@ -276,9 +287,15 @@ def solve_unknown(
     if root is not None:
         limit = SearchLimit(SCHEDULE.share(deadline, "walk"), max_nodes)
         diving = SearchLimit(SCHEDULE.share(limit.deadline, "dive"), max_nodes)
-        early = dive(explorer, root, diving, tracker=tracker)
-        proof = _proven(explorer, early, prove, tracker)
-        outcome = explore(explorer, root, limit, keep, found, tracker, reserve=keep)
+        early, proof = early_hypothesis(explorer, root, diving, prove, tracker)
+        if proof is not None and tracker is not None:
+            tracker.proven = 1
+        outcome = explore(
+            explorer, root, limit, keep, found, tracker, reserve=keep,
+            pinned=[] if early.leaf is None else [early.leaf],
+        )  # fmt: skip
+        if early.leaf is not None:
+            [early.leaf] = outcome.pinned
         explorer.expansions.clear()  # what the search did not take back: its memory
         if outcome.stop_reason is not None and not outcome.survivors and not early.finished:
             # nothing found: the stages after the search have nothing to decide, so the
@@ -286,7 +303,9 @@ def solve_unknown(
             more = SearchLimit(SCHEDULE.share(deadline, "walk"), max_nodes)
             early = dive(explorer, root, more, early, tracker=tracker)
             proof = proof or _proven(explorer, early, prove, tracker)
-        _join_dive(explorer, tally, outcome, early, keep)
+        if join_leaf(explorer, tally, early, [n.decisions() for n in outcome.unexplored]):
+            ranked = _best(explorer, [*outcome.survivors, *outcome.reserve, early.leaf], 2 * keep)
+            outcome.survivors, outcome.reserve = ranked[:keep], ranked[keep:]
     else:
         proof = None
     unexplored = [n.decisions() for n in outcome.unexplored]
@@ -316,26 +335,7 @@ def _proven(
     tracker: ProgressTracker | None,
 ) -> Hypothesis | None:
     """:func:`.dive.prove_leaf`, the proof counted by ``tracker``."""
-    proof = prove_leaf(explorer, early, prove)
+    proof = prove_leaf(explorer, early.leaf, prove)
     if proof is not None and tracker is not None:
         tracker.proven = 1
     return proof
-
-
-def _join_dive(explorer: Explorer, tally: Tally, outcome: _Outcome, early: Dive, keep: int) -> None:
-    """Count the dive's leaf among the survivors when the exhaustive search did not reach
-    it (it lies in a subtree left unexplored); a complete search reached it itself."""
-    stats = explorer.stats
-    stats.dive_nodes = early.nodes
-    stats.dive_discrepancies = early.discrepancies
-    leaf = early.leaf
-    if leaf is None or outcome.stop_reason is None:
-        return
-    decisions = leaf.decisions()
-    if not any(decisions[: n.depth] == n.decisions() for n in outcome.unexplored):
-        return
-    tally.add(leaf)
-    stats.survivors += 1
-    stats.dive_leaf_added = 1
-    ranked = _best(explorer, [*outcome.survivors, *outcome.reserve, leaf], 2 * keep)
-    outcome.survivors, outcome.reserve = ranked[:keep], ranked[keep:]

@@ -84,6 +84,12 @@ class SearchStatistics:
     dive_leaf_added: int = 0
     """1 when the dive's leaf lies in a subtree the exhaustive search left unexplored, and
     joined the survivors from there."""
+    guess_scans: int = 0
+    """Scans the guess decided at once (:mod:`.guess`)."""
+    guess_repairs: int = 0
+    """Scans the guess decided again reading by reading, where a scan at once was refuted."""
+    guess_proven: int = 0
+    """1 when the early proof is the guess's: the dive did not run."""
 
 
 @dataclass(frozen=True, slots=True)
