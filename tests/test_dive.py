@@ -106,7 +106,7 @@ def test_the_dive_reaches_a_leaf_of_a_sparse_world_within_its_share() -> None:
 def _certify_one(log):
     """The solver's ``prove``: the witness search on one hypothesis."""
 
-    def prove(hypothesis) -> None:
+    def prove(hypothesis, stage) -> None:
         certify(log, Solution([hypothesis]))
 
     return prove
@@ -119,8 +119,8 @@ def test_the_dive_leaf_is_proven_before_the_exhaustive_search() -> None:
     log, _ = simulate_paper(seed=0, unknown=True)
     proved: list[list[str]] = []
 
-    def prove(hypothesis) -> None:
-        _certify_one(log)(hypothesis)
+    def prove(hypothesis, stage) -> None:
+        _certify_one(log)(hypothesis, stage)
         if hypothesis.status == PROVEN:
             proved.append(hypothesis.assignment)
 
@@ -147,7 +147,9 @@ def test_a_leaf_not_proven_leaves_the_report_as_it_was() -> None:
     log, _ = simulate_paper(seed=0, unknown=True)
     calls: list[int] = []
     plain = solve_unknown(log, consistency="hull")
-    tried = solve_unknown(log, consistency="hull", prove=lambda h: calls.append(len(h.assignment)))
+    tried = solve_unknown(
+        log, consistency="hull", prove=lambda h, stage: calls.append(len(h.assignment))
+    )
     assert calls == [len(log.observations)]
     assert tried.statistics["dive_proven"] == 0
     assert [h.assignment for h in tried.hypotheses] == [h.assignment for h in plain.hypotheses]

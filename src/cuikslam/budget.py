@@ -293,7 +293,17 @@ def portion(deadline: Budget | None, fraction: float) -> Budget | None:
     return deadline.share(fraction)
 
 
-Stage = Literal["strengthen", "search", "walk", "dive", "guess", "bisection", "early_proof", "fit"]
+Stage = Literal[
+    "strengthen",
+    "search",
+    "walk",
+    "dive",
+    "guess",
+    "bisection",
+    "early_proof",
+    "guess_proof",
+    "fit",
+]
 """The stages of a solve that get a share of the budget (the fields of :class:`Schedule`
 that are fractions)."""
 
@@ -345,6 +355,10 @@ class Schedule:
     early_proof: float = 0.2
     """The witness search on the dive's leaf while the search goes on, of what is left of
     the solve's budget when the leaf is found: a proven hypothesis early."""
+    guess_proof: float = 0.1
+    """The witness search on the guess's leaf, of the early proof's share: a proof of the
+    true correspondence of a 1,000-pose sparse world takes about a twentieth of it, and a
+    wrong guess that nothing refuted would spend it all before the dive."""
     fit: float = 0.5
     """The least-squares fit that ranks the reported survivors, of what is left of the
     solve's budget when the search ends."""

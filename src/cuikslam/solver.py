@@ -184,8 +184,8 @@ def solve(
             on_survivor=on_survivor,
             prove=(
                 (
-                    lambda h: certify(
-                        log, Solution([h]), deadline=SCHEDULE.share(deadline, "early_proof")
+                    lambda h, stage: certify(
+                        log, Solution([h]), deadline=_early_proof(deadline, stage)
                     )
                 )
                 if options.certify_limit != 0 and n_poses <= CERTIFY_MAX_POSES
@@ -228,6 +228,12 @@ def solve(
         solution.timings["time_budget_s"] = float(options.time_budget)
     _record_budget(solution, deadline)
     return solution
+
+
+def _early_proof(deadline: Budget | None, stage: str) -> Budget | None:
+    """The budget of an early proof (``"early_proof"``, or ``"guess_proof"`` of it)."""
+    early = SCHEDULE.share(deadline, "early_proof")
+    return SCHEDULE.share(early, "guess_proof") if stage == "guess_proof" else early
 
 
 def _record_budget(solution: Solution, budget: Budget) -> None:

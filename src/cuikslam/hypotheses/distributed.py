@@ -34,7 +34,7 @@ import numpy as np
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import COSTS, SCHEDULE, Budget, deadline_after, expired, remaining, spend
 from cuikslam.hypotheses.bisection import Bisection, allotment, refute_by_bisection
-from cuikslam.hypotheses.dive import Dive, early_hypothesis, join_leaf, keep_proof
+from cuikslam.hypotheses.dive import Dive, Prove, early_hypothesis, join_leaf, keep_proof
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.finish import Rank, finish_search
 from cuikslam.hypotheses.outlier_option import OUTLIER
@@ -52,7 +52,7 @@ from cuikslam.hypotheses.tally import Tally
 from cuikslam.hypotheses.tree import Node, SearchLimit, SearchStatistics
 from cuikslam.log.records import Log
 from cuikslam.options import SolveOptions
-from cuikslam.outcome.solution import Hypothesis, Solution
+from cuikslam.outcome.solution import Solution
 
 __all__ = [
     "SubtreeResult",
@@ -133,7 +133,7 @@ def search_distributed(
     on_result: Callable[[SubtreeResult], None] | None = None,
     on_unexplored: Callable[[list[Prefix]], None] | None = None,
     rank: Rank | None = None,
-    prove: Callable[[Hypothesis], None] | None = None,
+    prove: Prove | None = None,
     **overrides: Any,
 ) -> Solution:
     """:func:`~cuikslam.hypotheses.solve_unknown` with its subtrees explored on ``client``'s

@@ -23,6 +23,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import asdict, fields
+from typing import Literal
 
 from cuikslam.budget import COSTS, SCHEDULE, spend
 from cuikslam.hypotheses.explorer import Explorer
@@ -43,9 +44,9 @@ __all__ = [
     "prove_leaf",
 ]
 
-Prove = Callable[[Hypothesis], None]
-"""Proves a hypothesis consistent when it can (sets its status and witness): see ``prove``
-of :func:`.search.solve_unknown`."""
+Prove = Callable[[Hypothesis, Literal["early_proof", "guess_proof"]], None]
+"""Proves a hypothesis consistent when it can (sets its status and witness), within the
+budget of the given stage of the schedule: see ``prove`` of :func:`.search.solve_unknown`."""
 
 MAX_DISCREPANCIES = 2
 """Departures from the children's order allowed on a path, at most."""
@@ -201,7 +202,7 @@ def early_hypothesis(
         guessed = first_guess(explorer, root, share)
         stats.guess_scans, stats.guess_repairs = guessed.scans, guessed.repairs
         if guessed.leaf is not None:
-            proof = prove_leaf(explorer, guessed.leaf, prove)
+            proof = prove_leaf(explorer, guessed.leaf, prove, "guess_proof")
             if proof is not None:
                 stats.guess_proven = 1
                 found = Dive()
@@ -214,12 +215,18 @@ def early_hypothesis(
     return early, prove_leaf(explorer, early.leaf, prove)
 
 
-def prove_leaf(explorer: Explorer, leaf: Node | None, prove: Prove | None) -> Hypothesis | None:
-    """``leaf`` as a hypothesis, when ``prove`` proves it consistent (else None)."""
+def prove_leaf(
+    explorer: Explorer,
+    leaf: Node | None,
+    prove: Prove | None,
+    stage: Literal["early_proof", "guess_proof"] = "early_proof",
+) -> Hypothesis | None:
+    """``leaf`` as a hypothesis, when ``prove`` proves it consistent within ``stage``'s
+    budget (else None)."""
     if leaf is None or prove is None:
         return None
     hypothesis = hypothesis_of(explorer, leaf)
-    prove(hypothesis)
+    prove(hypothesis, stage)
     if hypothesis.status != PROVEN:
         return None
     explorer.stats.dive_proven = 1

@@ -335,13 +335,17 @@ class Explorer:
         """
         if len(xs) < 2:
             return np.arange(len(xs))
+        return np.argsort(self.gaps(node, d, xs), kind="stable")
+
+    def gaps(self, node: Node, d: Decision, xs: np.ndarray) -> np.ndarray:
+        """Distances from where decision ``d``'s observation puts its landmark (its slot's
+        box) to the landmarks at x ``xs``, centre to centre, in ``node``."""
         slot = np.array([d.slot_x, d.slot_x + 1], dtype=np.int64)
         lo, hi = self.graph.values(node.overlay, np.concatenate([slot, xs, xs + 1]))
         with np.errstate(invalid="ignore", over="ignore"):
             centre = np.nan_to_num(0.5 * lo + 0.5 * hi, nan=0.0, posinf=0.0, neginf=0.0)
         n = len(xs)
-        gap = np.hypot(centre[2 : 2 + n] - centre[0], centre[2 + n :] - centre[1])
-        return np.argsort(gap, kind="stable")
+        return np.hypot(centre[2 : 2 + n] - centre[0], centre[2 + n :] - centre[1])
 
     def _after_decision(self, child: Node) -> Node | None:
         """The class prior's separation, negative information once the decided observation

@@ -25,6 +25,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, fields
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
 from cuikslam.budget import COSTS, spend
 from cuikslam.hypotheses.explorer import Explorer
@@ -37,6 +38,12 @@ MAX_BACK = 8
 """Scans a repair may go back, at most."""
 REPAIR_NODES = 256
 """Node expansions of one repair (the search's own, reading by reading), at most."""
+IMPOSSIBLE = 1e12
+"""Cost of a landmark a reading cannot see (another class, seen by its scan already,
+outside the gate) in a scan's assignment."""
+NEW = 1e6
+"""Cost of a new landmark in a scan's assignment: more than any distance, so that a
+known landmark through the gate is preferred."""
 RTOL = 0.05
 """The propagation of a scan's observations stops where variables shrink by less than
 this share of their width (the search's ``rtol`` is 1e-3): a weaker fixpoint, as sound.
@@ -158,36 +165,24 @@ def _scan_at_once(
 
 
 def _decided(explorer: Explorer, node: Node, first: int, end: int) -> Node | None:
-    """The scan's choices and their constraints: observations, new landmarks (class prior,
-    negative information), class separations."""
+    """The scan's choices (:func:`_choices`) and their constraints: observations, new
+    landmarks (class prior, negative information), class separations."""
     p, graph = explorer.problem, explorer.graph
     all_xs = explorer.landmark_xs(node)
     classes = [explorer.landmark_class(node, n) for n in range(len(all_xs))]
-    used = explorer.seen_by(node, p.decisions[first].scan)
-    rows, picked, new = [], [], []
+    chosen = _choices(explorer, node, first, end, all_xs, classes)
+    rows, new = [], []
     blocks, assigned = list(node.blocks), node.assigned
-    for k in range(first, end):
+    for k, number in zip(range(first, end), chosen, strict=True):
         d = p.decisions[k]
-        free = [n for n, c in enumerate(classes) if c == d.landmark_class and n not in used]
-        numbers = np.array(free, dtype=np.int64)
-        passed = graph.gate(node.overlay, d.sensor_x, all_xs[numbers], d.bearing_var, d.range_var)
-        if np.any(passed):
-            number = int(
-                numbers[passed][explorer.nearest_first(node, d, all_xs[numbers[passed]])[0]]
-            )
-            used.add(number)
+        if number >= 0:
             rows.append(observation_rows(p, d, all_xs[[number]]))
         else:
             number = len(all_xs) + len(new)
-            new.append(
-                (
-                    k,
-                    classes.count(d.landmark_class)
-                    + sum(p.decisions[j].landmark_class == d.landmark_class for j, _ in new),
-                )
-            )
+            new.append((k, classes.count(d.landmark_class)))
+            classes.append(d.landmark_class)
             blocks.append(k)
-        picked.append(number)
+        chosen[k - first] = number
         assigned = (number, assigned)
     overlay = node.overlay
     if rows:
@@ -199,7 +194,40 @@ def _decided(explorer: Explorer, node: Node, first: int, end: int) -> Node | Non
     if overlay is None:
         return None
     made = Node(end, overlay, tuple(blocks), assigned, lp_depth=node.lp_depth, lp_gap=node.lp_gap)
-    return None if any(explorer.too_close(made, n) for n in picked) else made
+    return None if any(explorer.too_close(made, n) for n in chosen) else made
+
+
+def _choices(
+    explorer: Explorer,
+    node: Node,
+    first: int,
+    end: int,
+    all_xs: np.ndarray,
+    classes: list[str],
+) -> list[int]:
+    """The landmark each reading of the scan sees (-1: a new one): the assignment of
+    distinct landmarks through the interval gate whose distances (centre of where the
+    reading puts its landmark to centre of the landmark) sum least, fewest new landmarks
+    first. Reading by reading, the nearest first would swap two look-alike landmarks
+    that a scan sees side by side (1,000-pose sparse world, seed 4: 35 readings)."""
+    p, graph = explorer.problem, explorer.graph
+    seen = explorer.seen_by(node, p.decisions[first].scan)
+    n_readings, n_known = end - first, len(all_xs)
+    cost = np.full((n_readings, n_known + n_readings), IMPOSSIBLE)
+    cost[np.arange(n_readings), n_known + np.arange(n_readings)] = NEW
+    for r, k in enumerate(range(first, end)):
+        d = p.decisions[k]
+        free = [n for n, c in enumerate(classes) if c == d.landmark_class and n not in seen]
+        numbers = np.array(free, dtype=np.int64)
+        passed = graph.gate(node.overlay, d.sensor_x, all_xs[numbers], d.bearing_var, d.range_var)
+        numbers = numbers[passed]
+        if len(numbers):
+            cost[r, numbers] = np.minimum(explorer.gaps(node, d, all_xs[numbers]), NEW / 2)
+    rows, cols = linear_sum_assignment(cost)
+    chosen = [-1] * n_readings
+    for r, c in zip(rows, cols, strict=True):
+        chosen[r] = int(c) if c < n_known else -1
+    return chosen
 
 
 def _repair(

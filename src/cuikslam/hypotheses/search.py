@@ -28,7 +28,15 @@ import numpy as np
 
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import COSTS, SCHEDULE, Budget, spend
-from cuikslam.hypotheses.dive import Dive, dive, early_hypothesis, join_leaf, keep_proof, prove_leaf
+from cuikslam.hypotheses.dive import (
+    Dive,
+    Prove,
+    dive,
+    early_hypothesis,
+    join_leaf,
+    keep_proof,
+    prove_leaf,
+)
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.finish import Rank, finish_search
 from cuikslam.hypotheses.problem import build_problem
@@ -211,7 +219,7 @@ def solve_unknown(
     deadline: Budget | None = None,
     on_survivor: Callable[[list[str]], None] | None = None,
     rank: Rank | None = None,
-    prove: Callable[[Hypothesis], None] | None = None,
+    prove: Prove | None = None,
     **overrides: Any,
 ) -> Solution:
     """Solve a log whose observations may lack landmark ids; return the surviving hypotheses.
@@ -253,11 +261,14 @@ def solve_unknown(
         is ranked by fewest outliers, fewest landmarks, then smallest boxes, and
         ``Solution.unreported`` holds the other survivors' assignments.
     prove : callable, optional
-        Called with the dive's leaf (:mod:`.dive`) as a hypothesis as soon as the dive
-        finds it, before the exhaustive search goes on: it may prove it consistent (set its
+        Called with a full assignment found before the exhaustive search goes on (the
+        guess's leaf, :mod:`.guess`, then the dive's, :mod:`.dive`) as a hypothesis, and
+        the stage of the schedule whose budget it may spend on it (``"guess_proof"`` for
+        the guess, else ``"early_proof"``): it may prove it consistent (set its
         ``status`` to proven and its ``witness``), as the witness search does. A proven
         leaf is then reported proven whatever the budget leaves for the stages after the
-        search (a witness lies in every sound box of its hypothesis).
+        search (a witness lies in every sound box of its hypothesis). Without it there is
+        no guess.
     **overrides
         Fields of :class:`~cuikslam.options.SolveOptions` replacing those of ``options``
         (``solve_unknown(log, consistency="hull", max_nodes=1000)``); those of the stages
@@ -331,7 +342,7 @@ def _both(first: Callable[[Node], None], second: Callable[[Node], None]) -> Call
 def _proven(
     explorer: Explorer,
     early: Dive,
-    prove: Callable[[Hypothesis], None] | None,
+    prove: Prove | None,
     tracker: ProgressTracker | None,
 ) -> Hypothesis | None:
     """:func:`.dive.prove_leaf`, the proof counted by ``tracker``."""
