@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, fields
 from typing import Literal
 
 from cuikslam.budget import COSTS, SCHEDULE, spend
@@ -31,7 +30,7 @@ from cuikslam.hypotheses.guess import first_guess
 from cuikslam.hypotheses.progress import ProgressTracker
 from cuikslam.hypotheses.survivors import hypothesis_of
 from cuikslam.hypotheses.tally import Tally
-from cuikslam.hypotheses.tree import Node, SearchLimit
+from cuikslam.hypotheses.tree import Node, SearchLimit, aside
 from cuikslam.outcome.solution import PROVEN, Hypothesis, Solution
 
 __all__ = [
@@ -114,10 +113,8 @@ def dive(
     Dive
         The leaf (or None) and the work done (``resume`` itself, when given).
     """
-    stats = explorer.stats
-    saved = asdict(stats)
     found = Dive() if resume is None else resume
-    try:
+    with aside(explorer.stats, limit):
         while not found.finished:
             if found._stack is None:
                 found._stack = [(root, found._k)]
@@ -127,13 +124,6 @@ def dive(
             if limit.exhausted(found.nodes) is not None:
                 break  # the probe's stack stays, for a resume
             found._k, found._stack = found._k + 1, None
-    except KeyboardInterrupt:  # Ctrl-C: the search that follows stops at once too
-        if limit.deadline is None:
-            raise
-        limit.deadline.meter.stop()
-    finally:
-        for f in fields(stats):
-            setattr(stats, f.name, saved[f.name])
     return found
 
 

@@ -22,7 +22,7 @@ sound search keeps. So nothing the guess skips can cut the truth or add a surviv
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -30,7 +30,7 @@ from scipy.optimize import linear_sum_assignment
 from cuikslam.budget import COSTS, spend
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.problem import observation_rows
-from cuikslam.hypotheses.tree import Node, SearchLimit
+from cuikslam.hypotheses.tree import Node, SearchLimit, aside
 
 __all__ = ["MAX_BACK", "REPAIR_NODES", "RTOL", "Guess", "first_guess", "scans"]
 
@@ -115,35 +115,31 @@ def first_guess(explorer: Explorer, root: Node, limit: SearchLimit) -> Guess:
     found = Guess()
     if explorer.problem.outlier is not None:
         return found
-    stats = explorer.stats
-    saved = asdict(stats)
+    with aside(explorer.stats, limit):
+        found.leaf = _walk(explorer, root, limit, found)
+    return found
+
+
+def _walk(explorer: Explorer, root: Node, limit: SearchLimit, found: Guess) -> Node | None:
+    """The leaf a scan at a time from ``root`` (None: a repair failed, or the budget
+    stopped it), the work counted in ``found``."""
     ranges = scans(explorer)
     starts: list[Node] = []
-    node = root
-    try:
-        s = 0
-        while s < len(ranges):
-            if limit.exhausted(found.scans + found.expansions) is not None:
-                return found
-            starts[s:] = [node]
-            first, end = ranges[s]
-            made = _scan_at_once(explorer, node, first, end, limit)
-            found.scans += 1
+    node, s = root, 0
+    while s < len(ranges):
+        if limit.exhausted(found.scans + found.expansions) is not None:
+            return None
+        starts[s:] = [node]
+        first, end = ranges[s]
+        made = _scan_at_once(explorer, node, first, end, limit)
+        found.scans += 1
+        if made is None:
+            made, path = _repair(explorer, starts, ranges, s, limit, found)
             if made is None:
-                made, path = _repair(explorer, starts, ranges, s, limit, found)
-                if made is None:
-                    return found
-                starts[s + 1 - len(path) : s + 1] = path
-            node, s = made, s + 1
-        found.leaf = node
-    except KeyboardInterrupt:  # Ctrl-C: what follows stops at once too
-        if limit.deadline is None:
-            raise
-        limit.deadline.meter.stop()
-    finally:
-        for f in fields(stats):
-            setattr(stats, f.name, saved[f.name])
-    return found
+                return None
+            starts[s + 1 - len(path) : s + 1] = path
+        node, s = made, s + 1
+    return node
 
 
 def _scan_at_once(

@@ -4,7 +4,9 @@ walks the tree)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import asdict, dataclass, fields
 
 from cuikslam.budget import Budget
 from cuikslam.hypotheses._shared import Overlay
@@ -16,6 +18,7 @@ __all__ = [
     "Node",
     "SearchLimit",
     "SearchStatistics",
+    "aside",
     "stop_reason",
 ]
 
@@ -149,3 +152,20 @@ class SearchLimit:
         if self.max_nodes is not None and nodes >= self.max_nodes:
             return "node budget"
         return None
+
+
+@contextmanager
+def aside(stats: SearchStatistics, limit: SearchLimit) -> Iterator[None]:
+    """A walk beside the search (the guess, the dive): ``stats`` are left as they were,
+    and Ctrl-C stops ``limit``'s meter (the search that follows stops at once too) and
+    ends the walk quietly; without a budget it goes up."""
+    saved = asdict(stats)
+    try:
+        yield
+    except KeyboardInterrupt:
+        if limit.deadline is None:
+            raise
+        limit.deadline.meter.stop()
+    finally:
+        for f in fields(stats):
+            setattr(stats, f.name, saved[f.name])
