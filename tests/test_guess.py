@@ -93,7 +93,7 @@ def test_the_guess_holds_the_truth_and_adds_only_survivors(world: World, naming:
 
 @pytest.mark.slow
 @pytest.mark.parametrize("naming", ["none", "mixed"])
-@settings(max_examples=50, deadline=None, suppress_health_check=HEALTH)
+@settings(max_examples=200, deadline=None, suppress_health_check=HEALTH)
 @given(world=worlds(**SMALL))
 def test_the_guess_holds_the_truth_and_adds_only_survivors_many(world: World, naming: str) -> None:
     check_guess(world, naming)
