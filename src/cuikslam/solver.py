@@ -16,6 +16,7 @@ from typing import Any
 from cuikslam._fpu import ensure_round_to_nearest
 from cuikslam.budget import SCHEDULE, Budget
 from cuikslam.graph.kinematic_graph import KinematicGraph
+from cuikslam.hypotheses.dive import ProofStage
 from cuikslam.hypotheses.labelled import (
     has_labelled_logs,
     hypothesis_from_graph,
@@ -230,7 +231,7 @@ def solve(
     return solution
 
 
-def _early_proof(deadline: Budget | None, stage: str) -> Budget | None:
+def _early_proof(deadline: Budget | None, stage: ProofStage) -> Budget | None:
     """The budget of an early proof (``"early_proof"``, or ``"guess_proof"`` of it)."""
     early = SCHEDULE.share(deadline, "early_proof")
     return SCHEDULE.share(early, "guess_proof") if stage == "guess_proof" else early

@@ -36,6 +36,8 @@ from cuikslam.outcome.solution import PROVEN, Hypothesis, Solution
 __all__ = [
     "MAX_DISCREPANCIES",
     "Dive",
+    "ProofStage",
+    "Prove",
     "dive",
     "early_hypothesis",
     "join_leaf",
@@ -43,7 +45,9 @@ __all__ = [
     "prove_leaf",
 ]
 
-Prove = Callable[[Hypothesis, Literal["early_proof", "guess_proof"]], None]
+ProofStage = Literal["early_proof", "guess_proof"]
+"""The stage of the schedule whose budget an early proof spends."""
+Prove = Callable[[Hypothesis, ProofStage], None]
 """Proves a hypothesis consistent when it can (sets its status and witness), within the
 budget of the given stage of the schedule: see ``prove`` of :func:`.search.solve_unknown`."""
 
@@ -209,7 +213,7 @@ def prove_leaf(
     explorer: Explorer,
     leaf: Node | None,
     prove: Prove | None,
-    stage: Literal["early_proof", "guess_proof"] = "early_proof",
+    stage: ProofStage = "early_proof",
 ) -> Hypothesis | None:
     """``leaf`` as a hypothesis, when ``prove`` proves it consistent within ``stage``'s
     budget (else None)."""

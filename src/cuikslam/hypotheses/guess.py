@@ -6,10 +6,11 @@ information, windows checked in local frames, branching nodes narrowed to ``lp``
 long log that is a few milliseconds a reading, and most readings have one candidate:
 on sparse worlds of 200 poses, 19 of 1,317 readings branch on the true path.
 
-The guess walks the same tree a scan at a time. For every reading of a scan it takes
-the candidate the explorer would try first (of its class, not seen by the scan already,
-through the interval gate, nearest to where the reading puts it) or, with none, a new
-landmark, and narrows the whole scan once: its observations, the negative information
+The guess walks the same tree a scan at a time. It assigns the scan's readings together
+to distinct landmarks (of their class, not seen by the scan already, through the interval
+gate), least sum of distances from where each reading puts its landmark to the
+landmark's centre, a new landmark only where no known one passes the gate
+(:func:`_choices`), and narrows the whole scan once: its observations, the negative information
 of its new landmarks and of the scan, the class priors, and one window in a local frame.
 Where that is proven empty, the scan is decided reading by reading with the search's own
 expansion, depth first; where that fails too, the scans before it are decided again the
@@ -167,7 +168,7 @@ def _decided(explorer: Explorer, node: Node, first: int, end: int) -> Node | Non
     all_xs = explorer.landmark_xs(node)
     classes = [explorer.landmark_class(node, n) for n in range(len(all_xs))]
     chosen = _choices(explorer, node, first, end, all_xs, classes)
-    rows, new = [], []
+    rows, new, numbers = [], [], []
     blocks, assigned = list(node.blocks), node.assigned
     for k, number in zip(range(first, end), chosen, strict=True):
         d = p.decisions[k]
@@ -178,7 +179,7 @@ def _decided(explorer: Explorer, node: Node, first: int, end: int) -> Node | Non
             new.append((k, classes.count(d.landmark_class)))
             classes.append(d.landmark_class)
             blocks.append(k)
-        chosen[k - first] = number
+        numbers.append(number)
         assigned = (number, assigned)
     overlay = node.overlay
     if rows:
@@ -190,7 +191,7 @@ def _decided(explorer: Explorer, node: Node, first: int, end: int) -> Node | Non
     if overlay is None:
         return None
     made = Node(end, overlay, tuple(blocks), assigned, lp_depth=node.lp_depth, lp_gap=node.lp_gap)
-    return None if any(explorer.too_close(made, n) for n in chosen) else made
+    return None if any(explorer.too_close(made, n) for n in numbers) else made
 
 
 def _choices(
