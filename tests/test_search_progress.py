@@ -17,8 +17,8 @@ import pytest
 from hypothesis import HealthCheck, assume, given, note, settings
 
 from cuikslam.cli._common import progress_bar
-from cuikslam.hypotheses import search
-from cuikslam.hypotheses.progress import SearchProgress, association_keys
+from cuikslam.hypotheses import finish, search
+from cuikslam.hypotheses.progress import SearchProgress, association_keys, decided_after_stop
 from cuikslam.hypotheses.search import solve_unknown
 from cuikslam.outcome.solution import OUTLIER
 from cuikslam.simulate import simulate_paper
@@ -89,13 +89,30 @@ def check_cuts(world: World, cuts: tuple[int, ...]) -> None:
     truth = associations(list(world.truth.assignment), set())
     rows = [associations(h.assignment, set()) for h in whole.hypotheses]
     for cut in cuts:
-        reports, _ = _reports(log, consistency="hull", max_nodes=cut)
+        said: list[tuple[int, ...]] = []
+        with mock.patch.object(finish, "decided_after_stop", _spy(said)):
+            reports, cut_solution = _reports(log, consistency="hull", max_nodes=cut)
         for status in reports:
             if status.stage == "dive":
                 continue
             for i in status.decided_positions:
                 assert all(row[i] == truth[i] for row in rows), (cut, i, status)
             assert whole.statistics["survivors"] <= 10**status.upper_log10 * (1 + 1e-9)
+        # what the result's message counts as decided when the cut stops the search
+        assert len(said) == (not cut_solution.complete)
+        for i in said[0] if said else ():
+            assert all(row[i] == truth[i] for row in rows), (cut, i, "message")
+
+
+def _spy(said: list[tuple[int, ...]]):
+    """``decided_after_stop`` that keeps what it returns in ``said``."""
+
+    def spy(*args):
+        out = decided_after_stop(*args)
+        said.append(out)
+        return out
+
+    return spy
 
 
 @settings(max_examples=8, deadline=None, derandomize=True, suppress_health_check=HEALTH)

@@ -17,6 +17,8 @@ from dataclasses import asdict
 from cuikslam.hypotheses.bisection import refute_by_bisection
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.labelled import has_labelled_logs, solve_labelled
+from cuikslam.hypotheses.problem import Problem
+from cuikslam.hypotheses.progress import decided_after_stop
 from cuikslam.hypotheses.survivors import (
     Entry,
     Refute,
@@ -85,6 +87,19 @@ def branch_places(log: Log, explorer: Explorer, unexplored: list[list[int]]) -> 
     return ", ".join(places)
 
 
+def _decided(problem: Problem, tally: Tally, unexplored: list[list[int]]) -> str:
+    """What a stopped search decided, for its message ('' when its survivors were too
+    many to hold)."""
+    found = tally.found()
+    if found is None:
+        return ""
+    decided = len(decided_after_stop(problem, unexplored, found))
+    return (
+        f"{decided:,} of {len(problem.decisions):,} readings are decided (associated alike "
+        "by every survivor found and every subtree left); "
+    )
+
+
 def finish_search(
     log: Log,
     explorer: Explorer,
@@ -122,12 +137,13 @@ def finish_search(
         tally.envelope.cover_root()
     if not complete:
         stats.unexplored_subtrees = len(unexplored)
+        one = len(unexplored) == 1
         messages.append(
-            f"the search stopped on its {stop_reason} with {len(unexplored):,} subtrees "
-            f"unexplored ({100 * (1 - stats.explored_fraction):.1f}% of the tree): the result "
-            "is INCOMPLETE, and the true hypothesis may be in them; the next ones to explore "
-            "try other landmarks for the observations at "
-            f"{branch_places(log, explorer, unexplored)}"
+            f"the search stopped on its {stop_reason} with {len(unexplored):,} "
+            f"{'subtree' if one else 'subtrees'} unexplored: the result is INCOMPLETE, and the "
+            f"true hypothesis may be in {'it' if one else 'them'}; "
+            f"{_decided(problem, tally, unexplored)}the next ones to explore try other "
+            f"landmarks for the observations at {branch_places(log, explorer, unexplored)}"
         )
     as_leaves = stats.refuted_by_bisection
     survivors, bisected, spare = bisect_with_reserve(

@@ -34,7 +34,13 @@ from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.problem import Problem
 from cuikslam.hypotheses.tree import Node
 
-__all__ = ["ProgressTracker", "SearchProgress", "association_keys", "takes_status"]
+__all__ = [
+    "ProgressTracker",
+    "SearchProgress",
+    "association_keys",
+    "decided_after_stop",
+    "takes_status",
+]
 
 _OUTLIER_KEY = -2
 _NEW_KEY = -1
@@ -155,6 +161,41 @@ def association_keys(
             keys[j] = last.get(n, -3 - n if n < n_named else _NEW_KEY)
         last[n] = position
     return keys
+
+
+def decided_after_stop(
+    problem: Problem, pending: list[list[int]], survivors: list[tuple[int, ...]]
+) -> tuple[int, ...]:
+    """Readings a stopped search decided, as indices among all observations: associated
+    alike by every survivor found and every hypothesis under a ``pending`` subtree (each
+    given by the decisions of its root, which fix the readings it names and leave those
+    after it open).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as Ns
+    >>> problem = Ns(decisions=[Ns(position=k) for k in range(4)], named_assignment={},
+    ...              named=[])
+    >>> decided_after_stop(problem, [[0, 0, 1], [0, 0, 2]], [(0, 0, 0, 0)])
+    (0, 1)
+    >>> decided_after_stop(problem, [[0, 0, 1]], [(0, 1, 0, 0)])
+    (0,)
+    """
+    positions = np.array([d.position for d in problem.decisions], dtype=np.int64)
+    if not pending:
+        return tuple(positions.tolist())
+    labelled, n_named = dict(problem.named_assignment), len(problem.named)
+    boundary = min(len(prefix) for prefix in pending)
+
+    def keys(decisions: list[int] | tuple[int, ...]) -> np.ndarray:
+        head = list(decisions[:boundary])
+        return association_keys(head, positions[:boundary], labelled, n_named)
+
+    reference = keys(pending[0])
+    agree = np.ones(boundary, dtype=np.bool_)
+    for decisions in [*pending[1:], *survivors]:
+        agree &= keys(decisions) == reference
+    return tuple(positions[:boundary][agree].tolist())
 
 
 def takes_status(progress: Callable[..., object]) -> bool:

@@ -83,6 +83,13 @@ class Tally:
                 self.assignments[k] = None
                 return
 
+    def found(self) -> list[tuple[int, ...]] | None:
+        """The decisions of every survivor found (None when more than ``MAX_TALLIED``:
+        then they are not all held)."""
+        if len(self.assignments) >= MAX_TALLIED:
+            return None
+        return list(self._position)
+
     def kept(self) -> list[list[str]]:
         """The assignments of the survivors not discarded."""
         return [a for a in self.assignments if a is not None]
