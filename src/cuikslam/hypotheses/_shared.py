@@ -97,6 +97,9 @@ class SharedGraph:
         self._table = k.rehash(self.rows, self.kinds, 0, 4096)
         self._live_after_compaction = 0
         self._load_after_rebase = 0
+        self.maintenances = 0
+        """Rebases and compactions :meth:`maintain` made: each moves the base or the pool
+        under the overlays it was not given."""
 
     # ------------------------------------------------------------------ the pool
     def _allocate(self, capacity: int) -> None:
@@ -299,14 +302,17 @@ class SharedGraph:
     # ------------------------------------------------------------- maintenance
     def maintain(self, overlays: list[Overlay]) -> list[Overlay]:
         """Rebase and compact when the overlays or the pool have doubled since last time;
-        returns the overlays re-expressed (same branches, same boxes, same rows)."""
+        returns the overlays re-expressed (same branches, same boxes, same rows). Any
+        other overlay no longer names its branch once :attr:`maintenances` has grown."""
         load = sum(o.size for o in overlays)
         if load > max(MIN_MAINTENANCE_LOAD, 2 * self._load_after_rebase):
             overlays = self.rebase(overlays)
             self._load_after_rebase = sum(o.size for o in overlays)
+            self.maintenances += 1
         if self.n_rows > max(MIN_MAINTENANCE_LOAD, 2 * self._live_after_compaction):
             overlays = self.compact(overlays)
             self._live_after_compaction = self.n_rows
+            self.maintenances += 1
         return overlays
 
     def rebase(self, overlays: list[Overlay]) -> list[Overlay]:

@@ -80,6 +80,11 @@ class Dive:
         """The probe's pending nodes, each with the departures it may still take (None:
         the probe at ``_k`` has not started)."""
 
+    def restart(self) -> None:
+        """Start the probe under way again from the root (its pending nodes are stale:
+        :meth:`.explorer.Explorer.restart`)."""
+        self._stack = None
+
     @property
     def finished(self) -> bool:
         """True when it found a leaf or tried every probe to its end."""

@@ -179,6 +179,17 @@ class Explorer:
             node = self.unseen_scans(node, self.problem.complete_at_root())
         return node
 
+    def restart(self) -> Node | None:
+        """The root again, on a fresh shared graph: once the search's housekeeping moved
+        the graph's base and pool (:meth:`SharedGraph.maintain`), a node it did not
+        re-express (the root, the dive's pending ones) no longer names its box: its
+        overlay would read the moved base, narrowed by other branches' decisions."""
+        p, old = self.problem, self.graph
+        self.graph = SharedGraph(p.lo, p.hi, p.ranked_vars, old.rtol, DEFAULT_ROUNDS)
+        self.graph.applications = old.applications
+        self.expansions.clear()
+        return self.root()
+
     def children(
         self, node: Node, keep: bool = False, narrow: bool = True
     ) -> tuple[list[Node], int]:

@@ -301,6 +301,7 @@ def solve_unknown(
         early, proof = early_hypothesis(explorer, root, diving, prove, tracker)
         if proof is not None and tracker is not None:
             tracker.proven = 1
+        maintenances = explorer.graph.maintenances
         outcome = explore(
             explorer, root, limit, keep, found, tracker, reserve=keep,
             pinned=[] if early.leaf is None else [early.leaf],
@@ -308,9 +309,14 @@ def solve_unknown(
         if early.leaf is not None:
             [early.leaf] = outcome.pinned
         explorer.expansions.clear()  # what the search did not take back: its memory
+        for node in outcome.unexplored:  # the truth may lie under any of them
+            tally.envelope.add(node)
         if outcome.stop_reason is not None and not outcome.survivors and not early.finished:
             # nothing found: the stages after the search have nothing to decide, so the
             # dive goes on with what they would have had (less a reserve for its leaf)
+            if explorer.graph.maintenances != maintenances:
+                root = explorer.restart()
+                early.restart()
             more = SearchLimit(SCHEDULE.share(deadline, "walk"), max_nodes)
             early = dive(explorer, root, more, early, tracker=tracker)
             proof = proof or _proven(explorer, early, prove, tracker)
@@ -320,8 +326,6 @@ def solve_unknown(
     else:
         proof = None
     unexplored = [n.decisions() for n in outcome.unexplored]
-    for node in outcome.unexplored:  # the truth may lie under any of them
-        tally.envelope.add(node)
     solution = finish_search(
         log, explorer, tally, outcome.survivors, unexplored, outcome.stop_reason, options,
         None, start, messages, rank=rank, reserve=outcome.reserve, unexplored_covered=True,
