@@ -819,3 +819,24 @@ def test_the_walk_with_its_own_truth_solves_and_keeps_the_truth(tmp_path: Path) 
     assert "Hypothesis 1 of" in result.stdout
     assert "truth check: the true correspondence survived" in " ".join(result.stdout.split())
     assert (tmp_path / "r.json").is_file()
+
+
+def test_values_near_the_largest_float_solve_without_warnings(tmp_path: Path) -> None:
+    """Bounds of 1e308 (a bearing known only to lie in [-1e308, 1e308], a map box that
+    wide) are valid input: the solve says nothing on stderr (an adversarial run saw
+    numpy's overflow warnings there) and its boxes are those of the log."""
+    lines = [
+        {"type": "prior", "pose": 0, "x": [0, 0], "y": [0, 0], "theta": [0, 0]},
+        {"type": "odometry", "from": 0, "to": 1, "turn": [0, 0.1], "distance": [1, 1.1]},
+        {"type": "observation", "pose": 0, "class": "post", "range": [3, 3.1],
+         "bearing": [0.1, 0.2]},
+        {"type": "observation", "pose": 1, "class": "post", "range": [2, 2.1],
+         "bearing": [-1e308, 1e308]},
+        {"type": "landmark", "id": "far", "class": "post", "x": [-1e308, 1e308],
+         "y": [-1e308, 1e308]},
+    ]  # fmt: skip
+    (tmp_path / "huge.jsonl").write_text("".join(json.dumps(r) + "\n" for r in lines))
+    result = run("solve", "huge.jsonl", "--json", "huge.result.json", cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert result.stderr == ""
+    assert json.loads((tmp_path / "huge.result.json").read_text())["hypotheses"]

@@ -124,7 +124,9 @@ def _sighted(box: np.ndarray) -> np.ndarray:
     from cuikslam import interval as ia
 
     reach = box[:, 4]
-    with np.errstate(invalid="ignore"):  # inf - inf in unbounded boxes: marked wild below
+    # inf - inf in unbounded boxes (marked wild below); sums past 1e308 round out to inf,
+    # and the sine and cosine of an angle that large are [-1, 1]: nothing to warn about
+    with np.errstate(invalid="ignore", over="ignore"):
         angle = ia.add(box[:, 2], box[:, 3])
         out = np.stack(
             [

@@ -154,18 +154,21 @@ def angles_inside(x: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
     x = np.asarray(x, dtype=float)
     lo = np.broadcast_to(np.asarray(lo, dtype=float), x.shape[:-1])
     hi = np.broadcast_to(np.asarray(hi, dtype=float), x.shape[:-1])
-    width = ia.sub(ia.interval(hi), ia.interval(lo))[..., 0]
-    any_angle = width >= TWO_PI_HI
+    # bounds near 1e308 overflow to inf (outward, as they should); a NaN compares False
     with np.errstate(invalid="ignore", over="ignore"):
+        width = ia.sub(ia.interval(hi), ia.interval(lo))[..., 0]
+        any_angle = width >= TWO_PI_HI
         k = np.round(((lo + hi) / 2.0 - (x[..., 0] + x[..., 1]) / 2.0) / (2 * math.pi))
-    k = np.where(np.isfinite(k), k, 0.0)
-    two_pi = ia.interval(TWO_PI_LO, TWO_PI_HI)
-    ok = np.zeros(x.shape[:-1], dtype=bool)
-    for step in (0.0, -1.0, 1.0):
-        shifted = ia.add(x, ia.mul(ia.interval(k + step), two_pi))
-        ok |= (
-            (shifted[..., 0] >= lo) & (shifted[..., 1] <= hi) & (shifted[..., 0] <= shifted[..., 1])
-        )
+        k = np.where(np.isfinite(k), k, 0.0)
+        two_pi = ia.interval(TWO_PI_LO, TWO_PI_HI)
+        ok = np.zeros(x.shape[:-1], dtype=bool)
+        for step in (0.0, -1.0, 1.0):
+            shifted = ia.add(x, ia.mul(ia.interval(k + step), two_pi))
+            ok |= (
+                (shifted[..., 0] >= lo)
+                & (shifted[..., 1] <= hi)
+                & (shifted[..., 0] <= shifted[..., 1])
+            )
     return (ok | any_angle) & (x[..., 0] <= x[..., 1])
 
 

@@ -45,7 +45,7 @@ class BoxStatistics:
 
 def _widths(boxes: np.ndarray) -> np.ndarray:
     """Widths ``hi - lo`` (inf for unbounded sides, 0 for empty boxes)."""
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore", over="ignore"):  # inf - inf; 1e308 - -1e308 is inf
         widths = boxes[..., 1] - boxes[..., 0]
     return np.where(np.isnan(widths), np.inf, np.maximum(widths, 0.0))
 
