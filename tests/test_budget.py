@@ -116,17 +116,92 @@ def test_a_wall_clock_cap_that_binds_is_recorded() -> None:
 def test_a_correspondence_search_gets_more_work_per_pose_by_default() -> None:
     """Without landmark ids the default budget is ``SEARCH_WORK_PER_POSE`` a pose, with
     them ``WORK_PER_POSE``; the seed's experiment decides both within it."""
-    from cuikslam.budget import SEARCH_WORK_PER_POSE, WORK_PER_POSE
+    from cuikslam.budget import SEARCH_WORK_PER_POSE, WALK_RESERVE_PER_POSE, WORK_PER_POSE
 
     assert SEARCH_WORK_PER_POSE > WORK_PER_POSE
     log, _ = simulate_paper(seed=0, unknown=True)
     n = len(log.pose_ids)
     solution = solve(log, consistency="lp")
-    assert solution.statistics["work_budget"] == work_budget_for(n, search=True)
+    assert solution.statistics["work_budget"] == work_budget_for(n, search=True) + (
+        WALK_RESERVE_PER_POSE * n
+    )
     assert work_budget_for(n, search=True) - work_budget_for(n) == pytest.approx(
         (SEARCH_WORK_PER_POSE - WORK_PER_POSE) * n, rel=1e-15
     )
     assert [h.status for h in solution.hypotheses] == ["proven consistent"] * 2
+
+
+def test_every_operator_application_of_the_search_is_spent_from_its_budget(monkeypatch) -> None:
+    """The search's narrowings (its shared graph's kernel, the leaves' bisection and the
+    windows narrowed in a local frame) all count against the work budget: on near-exact
+    readings the windows are half the work, and uncounted they let a 2e6-unit search run
+    for a minute."""
+    from cuikslam.hypotheses import _kernels, bisection, local
+    from cuikslam.hypotheses.search import solve_unknown
+    from cuikslam.simulate import simulate_random_world
+
+    applied = {"kernel": 0, "bisection": 0, "local": 0}
+
+    def counting(module, name: str, key: str, get) -> None:
+        original = getattr(module, name)
+
+        def spy(*args, **kwargs):
+            result = original(*args, **kwargs)
+            applied[key] += get(result)
+            return result
+
+        monkeypatch.setattr(module, name, spy)
+
+    counting(_kernels, "apply", "kernel", lambda r: r[1])
+    counting(bisection, "narrow", "bisection", lambda r: r.applications)
+    counting(local, "narrow", "local", lambda r: r.applications)
+    log, _ = simulate_random_world(
+        seed=2, n_poses=12, n_landmarks=6, size=(12.0, 8.0), max_range=6.0,
+        odometry_bounds=(1e-12, 1e-12), observation_bounds=(1e-12, 1e-12), unknown=True,
+    )  # fmt: skip
+    budget = Budget.start(work=2e5)
+    solve_unknown(log, consistency="hull", deadline=budget)
+    assert min(applied.values()) > 0
+    assert budget.meter.spent >= sum(applied.values())
+
+
+def test_only_the_walk_spends_the_reserve_and_what_it_leaves_is_dropped() -> None:
+    """What the walk spends beyond its share comes from the reserve, which the other
+    shares never count; a walk that ends within its share leaves the later stages exactly
+    the budget they had without a reserve."""
+    from cuikslam.budget import SCHEDULE
+
+    budget = Budget.start(work=1000, reserve=300)
+    search = SCHEDULE.share(budget, "search")
+    with SCHEDULE.walking(search) as walk:
+        assert walk.left == 720 + 300
+        spend(walk, 900)  # 180 beyond its share of 720
+        assert (search.left, budget.left, budget.meter.credit) == (80, 280, 180)
+        spend(walk, 200)  # the reserve runs out at 1,020: 80 of these count
+        assert expired(walk) and walk.left == 0
+        assert (budget.meter.credit, search.left) == (300, 0)
+    assert budget.meter.spent == 1100 and budget.left == 200
+
+    lean = Budget.start(work=1000, reserve=300)
+    with SCHEDULE.walking(SCHEDULE.share(lean, "search")) as walk:
+        spend(walk, 100)
+    after = SCHEDULE.share(lean, "search")
+    assert lean.meter.reserve == 0 and after.left == pytest.approx(0.8 * 900)
+    assert lean.left == Budget.start(work=900).left
+
+
+def test_a_default_search_budget_holds_the_walks_reserve_and_an_explicit_one_does_not() -> None:
+    from cuikslam.budget import WALK_RESERVE_PER_POSE
+    from cuikslam.simulate import simulate_random_world
+
+    log, _ = simulate_random_world(seed=1, n_poses=20, n_landmarks=6, unknown=True)
+    n = len(log.pose_ids)
+    auto = solve(log, consistency="hull", certify_limit=0)
+    given = solve(log, consistency="hull", certify_limit=0, work_budget=3e6)
+    assert auto.statistics["work_budget"] == work_budget_for(n, True) + WALK_RESERVE_PER_POSE * n
+    assert given.statistics["work_budget"] == 3e6
+    assert given.statistics["walk_reserve_spent"] == 0
+    assert 0 <= auto.statistics["walk_reserve_spent"] <= WALK_RESERVE_PER_POSE * n
 
 
 def test_blas_single_thread_limits_scipys_own_blas() -> None:
@@ -313,4 +388,4 @@ def test_the_schedule_alone_decides_the_shares() -> None:
         if re.search(r"\b[A-Z_]*SHARE\s*=|\bportion\(|\bcapped\(|\.share\(\s*[0-9]", line)
     ]
     assert found == []
-    assert (SCHEDULE.search, SCHEDULE.walk, SCHEDULE.dive) == (0.8, 0.7, 0.6)
+    assert (SCHEDULE.search, SCHEDULE.walk, SCHEDULE.dive) == (0.8, 0.9, 0.6)

@@ -45,6 +45,7 @@ __all__ = [
     "ONLINE_WORK_PER_POSE",
     "SCHEDULE",
     "SEARCH_WORK_PER_POSE",
+    "WALK_RESERVE_PER_POSE",
     "WORK_PER_POSE",
     "Budget",
     "Meter",
@@ -58,6 +59,7 @@ __all__ = [
     "portion",
     "remaining",
     "spend",
+    "walk_reserve_for",
     "work_budget_for",
 ]
 
@@ -78,6 +80,15 @@ id (the correspondence search): sized so that the sparse 200-pose worlds of
 ``benchmarks/bench_always_answers.py`` complete in about a minute of this machine's CPU
 (seeds 3 and 4 complete in 65 s and 36 s at 6.6e7 units, not at 2.2e7), while a search
 that completes early spends no more for it."""
+WALK_RESERVE_PER_POSE = 1.0e5
+"""Work units per pose that only the search's walk of its tree may spend, beyond its share,
+added to the ``auto`` budget of a log with a correspondence search: what the walk does not
+spend of it is dropped, so a log whose walk ends early (the dense worlds, the seed's
+experiment) spends no more for it, and the stages after the walk get the shares they would
+have had without it. Sized since the search's windows narrowed in a local frame are
+counted (2026-12-07; about half the walk's work): the sparse 200-pose worlds of
+``benchmarks/bench_always_answers.py`` whose walk completed within 6.2e7 units before
+(seed 3: 5.9e7 counted now) complete again."""
 COSTS = {
     "operator": 1.0,
     "lp_entry": 1.5,
@@ -130,6 +141,14 @@ class Meter:
 
     spent: float = 0.0
     """Work units spent so far."""
+    reserve: float = 0.0
+    """Work units that only the walk (:meth:`Schedule.walking`) may spend beyond its
+    share; dropped when it ends."""
+    credit: float = 0.0
+    """Work units the walk spent from ``reserve``: the other shares do not count them."""
+    reserve_from: float | None = None
+    """While the walk runs: the reading of :attr:`counted` beyond which its spending comes
+    from ``reserve``."""
     bound: str | None = None
     """The first limit that stopped a stage: ``"work"``, ``"time"``, ``"interrupt"``
     (Ctrl-C) or None."""
@@ -143,6 +162,16 @@ class Meter:
         in threads)."""
         with self._lock:
             self.spent += units
+            if self.reserve_from is not None and self.reserve > 0:
+                moved = min(self.reserve, self.spent - self.credit - self.reserve_from)
+                if moved > 0:
+                    self.credit += moved
+                    self.reserve -= moved
+
+    @property
+    def counted(self) -> float:
+        """Work units the shares count: ``spent`` less the walk's reserve it spent."""
+        return self.spent - self.credit
 
     def note(self, limit: str) -> None:
         """Record that ``limit`` stopped a stage (the first one recorded stays)."""
@@ -168,19 +197,32 @@ class Budget:
         The meter reading at which the stage stops (inf: no work limit).
     clock : float or None
         A :func:`time.perf_counter` value at which the stage stops (None: no time limit).
+    walk : bool
+        The walk's budget (:meth:`Schedule.walking`): ``work`` is a reading of
+        ``meter.spent``, its reserve included; the other budgets' readings are of
+        ``meter.counted``.
     """
 
     meter: Meter
     work: float = math.inf
     clock: float | None = None
+    walk: bool = False
 
     @classmethod
-    def start(cls, work: float | None = None, seconds: float | None = None) -> Budget:
-        """A new budget of ``work`` units and ``seconds`` of wall clock (None: no limit)."""
-        meter = Meter()
+    def start(
+        cls, work: float | None = None, seconds: float | None = None, reserve: float = 0.0
+    ) -> Budget:
+        """A new budget of ``work`` units and ``seconds`` of wall clock (None: no limit),
+        and ``reserve`` units more that only the walk may spend."""
+        meter = Meter(reserve=max(0.0, float(reserve)))
         limit = math.inf if work is None else max(0.0, float(work))
         clock = None if seconds is None or math.isinf(seconds) else meter.started + seconds
         return cls(meter, limit, clock)
+
+    @property
+    def reading(self) -> float:
+        """The meter's reading this budget's ``work`` is compared with."""
+        return self.meter.spent if self.walk else self.meter.counted
 
     @property
     def unlimited(self) -> bool:
@@ -190,14 +232,14 @@ class Budget:
     @property
     def left(self) -> float:
         """Work units left (never negative; inf without a work limit)."""
-        return max(0.0, self.work - self.meter.spent)
+        return max(0.0, self.work - self.reading)
 
     def expired(self) -> bool:
         """True once the work is spent, the wall clock has passed, or the meter was stopped
         (recorded on the meter)."""
         if self.meter.stopped:
             return True
-        if self.meter.spent >= self.work:
+        if self.reading >= self.work:
             self.meter.note("work")
             return True
         if self.clock is not None and time.perf_counter() >= self.clock:
@@ -209,12 +251,12 @@ class Budget:
         """A budget for a stage that may use ``fraction`` of what is left of this one."""
         work = self.work
         if work != math.inf:
-            work = self.meter.spent + fraction * self.left
+            work = self.reading + fraction * self.left
         clock = self.clock
         if clock is not None:
             now = time.perf_counter()
             clock = now + fraction * max(0.0, clock - now)
-        return Budget(self.meter, work, clock)
+        return Budget(self.meter, work, clock, self.walk)
 
     def alone(self, fraction: float = 1.0) -> Budget:
         """A budget of ``fraction`` of what is left of this one, counted on a meter of its
@@ -234,6 +276,21 @@ def work_budget_for(n_poses: int, search: bool = False) -> float:
     return DEFAULT_WORK_BUDGET + (SEARCH_WORK_PER_POSE if search else WORK_PER_POSE) * n_poses
 
 
+def walk_reserve_for(n_poses: int) -> float:
+    """The reserve that only the search's walk may spend, added to the default budget of a
+    log of ``n_poses`` poses with a correspondence search (:data:`WALK_RESERVE_PER_POSE`).
+
+    >>> budget = Budget.start(work=1000, reserve=walk_reserve_for(0) + 500)
+    >>> with SCHEDULE.walking(SCHEDULE.share(budget, "search")) as walk:
+    ...     spend(walk, 1000)
+    ...     expired(walk), budget.meter.credit
+    (False, 280.0)
+    >>> budget.left, budget.meter.spent, budget.meter.reserve
+    (280.0, 1000.0, 0.0)
+    """
+    return WALK_RESERVE_PER_POSE * n_poses
+
+
 def capped(deadline: Budget | None, units: float) -> Budget:
     """A budget of at most ``units`` more work, within ``deadline`` (on its meter, so that
     the work counts against it; a meter of its own without one).
@@ -245,7 +302,8 @@ def capped(deadline: Budget | None, units: float) -> Budget:
     """
     if deadline is None:
         return Budget.start(work=units)
-    return Budget(deadline.meter, min(deadline.work, deadline.meter.spent + units), deadline.clock)
+    work = min(deadline.work, deadline.reading + units)
+    return Budget(deadline.meter, work, deadline.clock, deadline.walk)
 
 
 def deadline_after(seconds: float | None) -> Budget | None:
@@ -324,7 +382,7 @@ class Schedule:
     >>> search = SCHEDULE.share(budget, "search")
     >>> walk = SCHEDULE.share(search, "walk")
     >>> search.left, walk.left, SCHEDULE.share(walk, "dive").left
-    (800.0, 560.0, 336.0)
+    (800.0, 720.0, 432.0)
     >>> SCHEDULE.share(None, "fit") is None, SCHEDULE.pending_parts(512)
     (True, 64)
     >>> SCHEDULE.share(budget, "witness")
@@ -339,10 +397,13 @@ class Schedule:
     search: float = 0.8
     """Unknown correspondence: the correspondence search with its survivors' bisection
     and stronger level, of the solve's budget; the witness search gets the rest."""
-    walk: float = 0.7
-    """The search's walk of the tree (with its dive), of the search's share: the rest
+    walk: float = 0.9
+    """The search's walk of the tree (with its dive), of the search's share, and the
+    budget's reserve (:meth:`walking`): the rest, with what the walk did not spend,
     decides its survivors (bisection, the stronger level), even when the walk is cut
-    short. A dive that found nothing goes on with this share of the search's share."""
+    short. A dive that found nothing goes on with this share of the search's share. 0.7
+    until the search's local-frame windows were counted (2026-12-07), which added about
+    half to the walk's work: completing the walk is what decides most logs."""
     dive: float = 0.6
     """The dive (a leaf early, :mod:`cuikslam.hypotheses.dive`), of the walk's share: the
     exhaustive walk takes back the dive's expansions, so none of it is wasted."""
@@ -379,6 +440,27 @@ class Schedule:
                 f"no stage {stage!r} in the schedule; the stages are {', '.join(_STAGES)}"
             )
         return portion(budget, getattr(self, stage))
+
+    @contextmanager
+    def walking(self, budget: Budget | None) -> Iterator[Budget | None]:
+        """The walk's share of ``budget`` (the search's), with its meter's reserve.
+
+        Inside, what the walk spends beyond its share comes from the reserve, which the
+        other shares do not count; on leaving, what is left of the reserve is dropped:
+        the stages after the walk get the shares they would have had without it.
+        """
+        share = self.share(budget, "walk")
+        if share is None or share.meter.reserve <= 0:
+            yield share
+            return
+        meter = share.meter
+        meter.reserve_from = share.work
+        extended = share.work - meter.counted + meter.reserve
+        try:
+            yield Budget(meter, meter.spent + extended, share.clock, walk=True)
+        finally:
+            meter.reserve_from = None
+            meter.reserve = 0.0
 
     def branch_node(self, budget: Budget | None) -> Budget:
         """The budget of the ``lp`` level on one branching node's window: at most

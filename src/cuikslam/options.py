@@ -31,7 +31,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any, Literal
 
-from cuikslam.budget import work_budget_for
+from cuikslam.budget import walk_reserve_for, work_budget_for
 
 __all__ = ["AMBIGUITY_LP_MIN_DECISIONS", "Level", "SolveOptions", "check_option_names"]
 
@@ -190,6 +190,12 @@ class SolveOptions:
         if self.work_budget == "auto":
             return work_budget_for(n_poses, search)
         return None if self.work_budget is None else float(self.work_budget)
+
+    def walk_reserve_for(self, n_poses: int, search: bool = False) -> float:
+        """The work only the search's walk may spend beyond its share: with the ``"auto"``
+        budget and a search, :func:`~cuikslam.budget.walk_reserve_for` the log's poses;
+        none with a budget given (it bounds the whole solve)."""
+        return walk_reserve_for(n_poses) if self.work_budget == "auto" and search else 0.0
 
     def replace(self, **changes: Any) -> SolveOptions:
         """A copy with ``changes`` (TypeError on a name that is not an option)."""

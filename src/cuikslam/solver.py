@@ -175,7 +175,8 @@ def solve(
     warm_up_s = warm_up(unknown, lp)
     start = time.perf_counter()
     n_poses = len(log.pose_ids)
-    deadline = Budget.start(options.work_for(n_poses, unknown), options.time_budget)
+    reserve = options.walk_reserve_for(n_poses, unknown)
+    deadline = Budget.start(options.work_for(n_poses, unknown), options.time_budget, reserve)
     if unknown:
         solution = (search or solve_unknown)(
             log,
@@ -227,7 +228,7 @@ def solve(
     solution.timings["warm_up_s"] = warm_up_s
     if options.time_budget is not None:
         solution.timings["time_budget_s"] = float(options.time_budget)
-    _record_budget(solution, deadline)
+    _record_budget(solution, deadline, reserve)
     return solution
 
 
@@ -237,11 +238,13 @@ def _early_proof(deadline: Budget | None, stage: ProofStage) -> Budget | None:
     return SCHEDULE.share(early, "guess_proof") if stage == "guess_proof" else early
 
 
-def _record_budget(solution: Solution, budget: Budget) -> None:
-    """Which budget the solve had, what it spent and which limit stopped a stage, if any;
-    a message when the wall clock did (the result may then differ from run to run)."""
+def _record_budget(solution: Solution, budget: Budget, reserve: float) -> None:
+    """Which budget the solve had (its walk's ``reserve`` included), what it spent and
+    which limit stopped a stage, if any; a message when the wall clock did (the result may
+    then differ from run to run)."""
     stats = solution.statistics
-    stats["work_budget"] = None if budget.work == math.inf else budget.work
+    stats["work_budget"] = None if budget.work == math.inf else budget.work + reserve
+    stats["walk_reserve_spent"] = round(budget.meter.credit)
     stats["work_spent"] = round(budget.meter.spent)
     stats["budget_bound"] = budget.meter.bound
     if budget.meter.bound == "interrupt":

@@ -13,7 +13,12 @@ import sys
 from collections.abc import Sequence
 
 from cuikslam import __version__
-from cuikslam.budget import DEFAULT_WORK_BUDGET, SEARCH_WORK_PER_POSE, WORK_PER_POSE
+from cuikslam.budget import (
+    DEFAULT_WORK_BUDGET,
+    SEARCH_WORK_PER_POSE,
+    WALK_RESERVE_PER_POSE,
+    WORK_PER_POSE,
+)
 from cuikslam.cli._common import (
     EXIT_INPUT,
     EXIT_INTERRUPTED,
@@ -86,7 +91,8 @@ WORK_HELP = (
     "runs out stops soundly and says so (boxes at a weaker level, a hypothesis left 'not "
     "refuted', an incomplete search); 'none' for no limit; 'auto' (default): "
     f"{DEFAULT_WORK_BUDGET:.3g} plus {WORK_PER_POSE:.3g} per pose of the log "
-    f"({SEARCH_WORK_PER_POSE:.3g} when some reading lacks its landmark id)"
+    f"({SEARCH_WORK_PER_POSE:.3g} when some reading lacks its landmark id, and "
+    f"{WALK_RESERVE_PER_POSE:.3g} more per pose that only the search's walk may spend)"
 )
 TIME_HELP = (
     "an optional wall-clock cap in seconds on top of the work budget (default: none); when "

@@ -170,29 +170,29 @@ def search_distributed(
     tally = Tally(explorer, on_survivor)
     tally.envelope.set_root(root)  # the fallback for unexplored prefixes
     keep = max(1, options.max_hypotheses)
-    searching = SCHEDULE.share(deadline, "walk")  # the rest decides its survivors
-    run = _Run(explorer, searching, max_nodes, keep)
-    found: list[Node] = []
-    split_s = merge_s = 0.0
-    slots = max(1, sum(client.nthreads().values()))
-    early = Dive()
-    proof = None
-    if root is not None:
-        diving = SearchLimit(SCHEDULE.share(searching, "dive"), max_nodes)
-        early, proof = early_hypothesis(explorer, root, diving, prove)
-        prefixes = run.split(root, SPLIT_PER_SLOT * slots)
-        split_s = time.perf_counter() - start
-        task = TaskOptions(
-            key=uuid.uuid4().hex, search=options, keep=keep,
-            all_survivors=on_survivor is not None, quantum_s=quantum_s,
-            deadline=_epoch(searching),
-        )  # fmt: skip
-        results = run.on_cluster(
-            client, log, prefixes, task, slots, quantum_nodes, progress, on_result
-        )
-        merge_start = time.perf_counter()
-        found = _merge(explorer, root, tally, results, run.best)
-        merge_s = time.perf_counter() - merge_start
+    with SCHEDULE.walking(deadline) as searching:  # the rest decides its survivors
+        run = _Run(explorer, searching, max_nodes, keep)
+        found: list[Node] = []
+        split_s = merge_s = 0.0
+        slots = max(1, sum(client.nthreads().values()))
+        early = Dive()
+        proof = None
+        if root is not None:
+            diving = SearchLimit(SCHEDULE.share(searching, "dive"), max_nodes)
+            early, proof = early_hypothesis(explorer, root, diving, prove)
+            prefixes = run.split(root, SPLIT_PER_SLOT * slots)
+            split_s = time.perf_counter() - start
+            task = TaskOptions(
+                key=uuid.uuid4().hex, search=options, keep=keep,
+                all_survivors=on_survivor is not None, quantum_s=quantum_s,
+                deadline=_epoch(searching),
+            )  # fmt: skip
+            results = run.on_cluster(
+                client, log, prefixes, task, slots, quantum_nodes, progress, on_result
+            )
+            merge_start = time.perf_counter()
+            found = _merge(explorer, root, tally, results, run.best)
+            merge_s = time.perf_counter() - merge_start
     stats = explorer.stats
     stats.explored_fraction = min(1.0, run.done)
     if join_leaf(explorer, tally, early, run.unexplored()):

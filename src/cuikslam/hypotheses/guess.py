@@ -152,13 +152,14 @@ def _scan_at_once(
     p, graph = explorer.problem, explorer.graph
     applications = graph.applications
     made = _decided(explorer, node, first, end)
-    spend(limit.deadline, COSTS["node"] + COSTS["operator"] * (graph.applications - applications))
     d = p.decisions[end - 1]
     if made is not None and p.has_sensor and d.completes_scan:
         made = explorer.unseen_scans(made, [d.pose])
-    if made is None or explorer.local is None:
-        return made
-    return None if explorer.local.refutes(graph, made.overlay, d.pose, False) else made
+    if made is not None and explorer.local is not None:
+        if explorer.local.refutes(graph, made.overlay, d.pose, False):
+            made = None
+    spend(limit.deadline, COSTS["node"] + COSTS["operator"] * (graph.applications - applications))
+    return made
 
 
 def _decided(explorer: Explorer, node: Node, first: int, end: int) -> Node | None:

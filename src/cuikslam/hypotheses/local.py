@@ -81,7 +81,11 @@ class LocalCheck:
 
     def refutes(self, graph: SharedGraph, overlay: Overlay, pose: int, every: bool) -> bool:
         """True when a window ending at ``pose`` is proven inconsistent in its frame: the
-        first of :data:`WINDOWS`, or with ``every`` (a scan just decided) all of them."""
+        first of :data:`WINDOWS`, or with ``every`` (a scan just decided) all of them.
+
+        The windows' operator applications are added to ``graph.applications``, which
+        the search spends from its budget: on a log of near-exact readings they are most
+        of its work."""
         self.checks += 1
         windows = self._windows[pose]
         for window, anchor_x in windows if every else windows[:1]:
@@ -109,7 +113,9 @@ class LocalCheck:
         lo[free], hi[free] = -math.inf, math.inf
         lo[anchor], hi[anchor] = 0.0, 0.0
         arrays = linked(local, len(variables))
-        return narrow(arrays, lo, hi, None, self.rtol, self.rounds, MAX_APPLICATIONS).is_empty
+        result = narrow(arrays, lo, hi, None, self.rtol, self.rounds, MAX_APPLICATIONS)
+        graph.applications += result.applications
+        return result.is_empty
 
 
 def pose_windows(

@@ -296,16 +296,17 @@ def solve_unknown(
     outcome = _Outcome([], [], None)
     keep = max(1, options.max_hypotheses)
     if root is not None:
-        limit = SearchLimit(SCHEDULE.share(deadline, "walk"), max_nodes)
-        diving = SearchLimit(SCHEDULE.share(limit.deadline, "dive"), max_nodes)
-        early, proof = early_hypothesis(explorer, root, diving, prove, tracker)
-        if proof is not None and tracker is not None:
-            tracker.proven = 1
-        maintenances = explorer.graph.maintenances
-        outcome = explore(
-            explorer, root, limit, keep, found, tracker, reserve=keep,
-            pinned=[] if early.leaf is None else [early.leaf],
-        )  # fmt: skip
+        with SCHEDULE.walking(deadline) as walk:
+            limit = SearchLimit(walk, max_nodes)
+            diving = SearchLimit(SCHEDULE.share(limit.deadline, "dive"), max_nodes)
+            early, proof = early_hypothesis(explorer, root, diving, prove, tracker)
+            if proof is not None and tracker is not None:
+                tracker.proven = 1
+            maintenances = explorer.graph.maintenances
+            outcome = explore(
+                explorer, root, limit, keep, found, tracker, reserve=keep,
+                pinned=[] if early.leaf is None else [early.leaf],
+            )  # fmt: skip
         if early.leaf is not None:
             [early.leaf] = outcome.pinned
         explorer.expansions.clear()  # what the search did not take back: its memory
