@@ -445,8 +445,9 @@ class Schedule:
     def walking(self, budget: Budget | None) -> Iterator[Budget | None]:
         """The walk's share of ``budget`` (the search's), with its meter's reserve.
 
-        Inside, what the walk spends beyond its share comes from the reserve, which the
-        other shares do not count; on leaving, what is left of the reserve is dropped:
+        Inside, what is spent beyond the walk's share (by the walk, its dive, and the
+        early proof of the dive's leaf, which run inside it) comes from the reserve, which
+        the other shares do not count; on leaving, what is left of the reserve is dropped:
         the stages after the walk get the shares they would have had without it.
         """
         share = self.share(budget, "walk")
