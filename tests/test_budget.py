@@ -204,6 +204,37 @@ def test_a_default_search_budget_holds_the_walks_reserve_and_an_explicit_one_doe
     assert 0 <= auto.statistics["walk_reserve_spent"] <= WALK_RESERVE_PER_POSE * n
 
 
+def test_a_branching_nodes_lp_window_keeps_its_cap_while_the_walk_spends_its_reserve(
+    monkeypatch,
+) -> None:
+    """The walk's nodes spend from the walk's budget: measured on the search's share, whose
+    reading the reserve holds still, one ``lp`` window once spent 8.7e6 units against its
+    cap of ``branch_node_work`` (a review of the reserve, 2026-12-07)."""
+    import cuikslam.options
+    from cuikslam.budget import SCHEDULE
+    from cuikslam.hypotheses.ambiguity import AmbiguityLp
+    from cuikslam.simulate import simulate_random_world
+
+    spent: list[float] = []
+    original = AmbiguityLp.narrow
+
+    def narrow(self, graph, overlay, pose, deadline):
+        before = deadline.meter.spent
+        result = original(self, graph, overlay, pose, deadline)
+        spent.append(deadline.meter.spent - before)
+        return result
+
+    monkeypatch.setattr(AmbiguityLp, "narrow", narrow)
+    monkeypatch.setattr(cuikslam.options, "work_budget_for", lambda n, search=False: 4e5)
+    monkeypatch.setattr(cuikslam.options, "walk_reserve_for", lambda n: 2e7)
+    log, _ = simulate_random_world(
+        seed=7, n_poses=60, n_landmarks=12, unknown=True, size=(30.0, 20.0), max_range=6.0
+    )
+    solution = solve(log, certify_limit=0)
+    assert solution.statistics["walk_reserve_spent"] > SCHEDULE.branch_node_work
+    assert spent and max(spent) <= 1.1 * SCHEDULE.branch_node_work
+
+
 def test_blas_single_thread_limits_scipys_own_blas() -> None:
     """scipy ships its own OpenBLAS, loaded on first use: loaded inside the block (as the
     witness search loads scipy.optimize), it must run on one thread too."""
