@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from cuikslam.hypotheses.explorer import Explorer
+from cuikslam.hypotheses.joined import joined_paths
 from cuikslam.hypotheses.outlier_option import OUTLIER
 from cuikslam.hypotheses.tree import Node
 from cuikslam.outcome.solution import Envelope as EnvelopeBoxes
@@ -62,8 +63,10 @@ class Envelope:
         np.maximum(self.hi, hi, out=self.hi)
 
     def add(self, node: Node) -> None:
-        """Join a survivor's, or an unexplored node's, boxes."""
-        self.join(*self.boxes_of(node))
+        """Join a survivor's, or an unexplored node's, boxes (a joined node's, as each
+        hypothesis prefix it stands for: :func:`.joined.joined_paths`)."""
+        for numbers in joined_paths(node, self.explorer.n_named):
+            self.join(*self.boxes_of(node, numbers))
 
     def set_root(self, root: Node | None) -> None:
         """Keep the root's boxes, the fallback for unexplored subtrees whose nodes are not
@@ -75,11 +78,14 @@ class Envelope:
         if self.root is not None:
             self.join(*self.root)
 
-    def boxes_of(self, node: Node) -> tuple[np.ndarray, np.ndarray]:
-        """``node``'s flat boxes: its poses, and where each observation's landmark lies."""
+    def boxes_of(
+        self, node: Node, decisions: list[int] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """``node``'s flat boxes: its poses, and where each observation's landmark lies (by
+        ``decisions``, every decision made in ``node``'s numbering: its own by default)."""
         ex, p = self.explorer, self.explorer.problem
         n_poses = len(self.pose_cols)
-        numbers = np.array(node.decisions(), dtype=np.int64)
+        numbers = np.array(node.decisions() if decisions is None else decisions, dtype=np.int64)
         decided = numbers != OUTLIER
         landmark_xs = ex.landmark_xs(node)
         lm_pos = np.concatenate([self._named_pos, self._dec_pos[: node.depth][decided]])

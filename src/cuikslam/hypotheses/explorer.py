@@ -94,6 +94,9 @@ class Explorer:
         self._pose_xs = np.array(sorted(problem.pose_x.values()), dtype=np.int64)
         self.expansions = Expansions()
         """The dive's expansions, for the exhaustive search to take back (:mod:`.expansions`)."""
+        self.joins = False
+        """Whether the exhaustive search joins lanes that agree on their future
+        (:mod:`.joined`); not on a cluster, whose tasks are named by their prefixes."""
 
     @classmethod
     def of(cls, problem: Problem, options: SolveOptions) -> Explorer:
@@ -280,12 +283,14 @@ class Explorer:
                 lp_depth=node.lp_depth,
                 lp_gap=node.lp_gap,
                 outliers=node.outliers,
+                lanes=node.lanes,
             )
             child = self._after_decision(made)
             if child is not None:
                 out.append(child)
         new: Node | None = None
-        overlay = self.new_landmark(node.overlay, k, len(numbers), node.outliers)
+        of_class = len(numbers) if node.lanes is None else self._fewest(node, d.landmark_class)
+        overlay = self.new_landmark(node.overlay, k, of_class, node.outliers)
         if overlay is not None:
             new = Node(
                 k + 1,
@@ -295,6 +300,7 @@ class Explorer:
                 lp_depth=node.lp_depth,
                 lp_gap=node.lp_gap,
                 outliers=node.outliers,
+                lanes=node.lanes,
             )
             new = self._after_decision(new)
         if new is not None:
@@ -335,6 +341,24 @@ class Explorer:
         if p.has_sensor and len(done_xs):
             return self._add_unseen(overlay, done_xs, done_radii, np.array([d.slot_x]))
         return overlay
+
+    def _fewest(self, node: Node, cls: str) -> int:
+        """Fewest landmarks of class ``cls`` that a lane of the joined ``node`` holds: its
+        lanes' count and those made since the join."""
+        lanes = node.lanes
+        assert lanes is not None
+        made = range(self.n_named + len(lanes.blocks), self.n_named + len(node.blocks))
+        since = sum(self.landmark_class(node, n) == cls for n in made)
+        return lanes.class_count.get(cls, 0) + since
+
+    def held_by_all(self, node: Node) -> np.ndarray:
+        """Which landmark numbers of ``node`` every hypothesis it stands for holds (all but
+        the landmarks only some lanes of a joined node hold)."""
+        held = np.ones(self.n_named + len(node.blocks), dtype=np.bool_)
+        if node.lanes is not None:
+            partial = self.n_named + np.arange(len(node.lanes.blocks))
+            held[partial] = [n in node.lanes.common for n in partial.tolist()]
+        return held
 
     def nearest_first(self, node: Node, d: Decision, xs: np.ndarray) -> np.ndarray:
         """The order in which to explore the candidate landmarks at x ``xs``: nearest first
@@ -398,7 +422,14 @@ class Explorer:
         if prior is None or prior.min_separation is None:
             return False
         xs = self.landmark_xs(node)
-        others = [n for n in range(len(xs)) if n != number and self.landmark_class(node, n) == cls]
+        held = self.held_by_all(node)  # a joined node's others: their lanes check them
+        if not held[number]:
+            return False
+        others = [
+            n
+            for n in range(len(xs))
+            if n != number and held[n] and self.landmark_class(node, n) == cls
+        ]
         if not others:
             return False
         mine = np.array([xs[number], xs[number] + 1], dtype=np.int64)
@@ -412,9 +443,13 @@ class Explorer:
         d = prior.min_separation
         return bool(np.any(far2 * (1 + 1e-9) < d * d * (1 - 1e-9)))
 
-    def unseen_scans(self, node: Node, poses: list[int]) -> Node | None:
+    def unseen_scans(
+        self, node: Node, poses: list[int], only: np.ndarray | None = None
+    ) -> Node | None:
         """Add UNSEEN constraints between each of ``poses`` (whose scans ``node`` has fully
-        decided) and every landmark it did not see; None when that proves ``node`` empty."""
+        decided) and every landmark it did not see (of a joined node, that all its lanes
+        hold; of landmark numbers ``only`` when given); None when that proves ``node``
+        empty."""
         p = self.problem
         if p.outlier is not None:  # a pose with an outlier: its true detections are unknown
             outlying = {p.decisions[j].pose for j in node.outliers} | p.outlier.tainted
@@ -426,6 +461,11 @@ class Explorer:
         for i, pose in enumerate(poses):
             for n in self.seen_by(node, pose):
                 seen[i, n] = True
+        if only is not None:
+            wanted = np.zeros(len(landmark_xs), dtype=np.bool_)
+            wanted[only] = True
+            seen[:, ~wanted] = True
+        seen[:, ~self.held_by_all(node)] = True  # no constraint on what a lane lacks
         pose_xs = np.array([p.pose_x[q] for q in poses], dtype=np.int64)
         radii = np.array([p.radius_var[q] for q in poses], dtype=np.int64)
         overlay = self._add_unseen(node.overlay, pose_xs, radii, landmark_xs, seen)

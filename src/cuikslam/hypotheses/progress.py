@@ -241,8 +241,8 @@ class ProgressTracker:
         self._send(SearchProgress("dive", self.readings, 0, 0, self.proven, 1, 0.0, depth, 0.0))
 
     def report(self, stack: list[Node], explored: float) -> SearchProgress:
-        """Report the search with ``stack`` pending (one root's depth-first stack: every
-        pending node shares the decisions of the shallowest but its last)."""
+        """Report the search with ``stack`` pending (one root's: nodes that share the
+        decisions of a common ancestor)."""
         status = self.status(stack, explored)
         self._send(status)
         return status
@@ -250,11 +250,10 @@ class ProgressTracker:
     def status(self, stack: list[Node], explored: float) -> SearchProgress:
         """The :class:`SearchProgress` of the search with ``stack`` pending."""
         if stack:
-            shallowest = min(stack, key=lambda n: n.depth)
-            boundary = max(0, shallowest.depth - 1)
-            reference = self._keys(shallowest.decisions()[:boundary])
+            boundary, common = _common_prefix(stack)
+            reference = self._keys(_listed(common))
             depth = stack[-1].depth
-            bounds = [self._suffix[n.depth] for n in stack]
+            bounds = [self._suffix[n.depth] + math.log10(_lanes(n)) for n in stack]
         else:
             boundary, reference, depth, bounds = self.readings, None, self.readings, []
         agree = np.ones(boundary, dtype=np.bool_)
@@ -284,6 +283,42 @@ class ProgressTracker:
             self.callback(done, status.readings, status)
         elif status.stage != "dive":
             self.callback(status.decided, status.readings)
+
+
+def _lanes(node: Node) -> int:
+    return 1 if node.lanes is None else len(node.lanes.nodes)
+
+
+def _common_prefix(stack: list[Node]) -> tuple[int, tuple | None]:
+    """The decisions every node of ``stack`` shares (a joined node: each of its lanes),
+    as their depth and the common ancestor's ``assigned`` list, but the last decision of
+    the shallowest (its siblings may differ there). Children share their parent's list
+    object, so a common ancestor is found by identity (lists equal but distinct only make
+    the prefix shorter)."""
+    chains = []
+    for n in stack:
+        if n.lanes is None:
+            chains.append((n.depth, n.assigned))
+        else:
+            chains.extend((n.lanes.depth, lane.assigned) for lane in n.lanes.nodes)
+    depth = max(0, min(d for d, _ in chains) - 1)
+    at = []
+    for d, chain in chains:
+        for _ in range(d - depth):
+            chain = chain[1]
+        at.append(chain)
+    while depth > 0 and any(a is not at[0] for a in at):
+        at = [a[1] for a in at]
+        depth -= 1
+    return depth, at[0]
+
+
+def _listed(chain: tuple | None) -> list[int]:
+    out = []
+    while chain is not None:
+        out.append(chain[0])
+        chain = chain[1]
+    return out[::-1]
 
 
 def _options_suffix(problem: Problem) -> np.ndarray:

@@ -39,6 +39,7 @@ from cuikslam.hypotheses.dive import (
 )
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.finish import Rank, finish_search
+from cuikslam.hypotheses.joined import combine, lane_paths, look_ahead
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.progress import ProgressTracker
 from cuikslam.hypotheses.tally import Tally
@@ -121,9 +122,7 @@ def explore(
             break
         before = expanded
         try:
-            done, expanded = _step(
-                explorer, stack, survivors, done, expanded, on_survivor, budget.deadline
-            )
+            done, expanded = _step(explorer, stack, survivors, done, expanded, on_survivor, budget)
         except KeyboardInterrupt:  # Ctrl-C: what is pending becomes the unexplored part
             if budget.deadline is None:
                 raise
@@ -133,9 +132,9 @@ def explore(
         if len(survivors) > 2 * (keep + reserve):
             survivors = _best(explorer, survivors, keep + reserve)
         stats.peak_frontier = max(stats.peak_frontier, len(stack))
-        if expanded > before and expanded % MAINTAIN_EVERY == 0:
+        if expanded // MAINTAIN_EVERY > before // MAINTAIN_EVERY:
             stack, survivors, pinned = _maintain(explorer, stack, survivors, pinned)
-        if tracker is not None and expanded > before and expanded % REPORT_EVERY == 0:
+        if tracker is not None and expanded // REPORT_EVERY > before // REPORT_EVERY:
             tracker.report(stack, done)
     stats.explored_fraction = min(1.0, done)
     if tracker is not None:
@@ -151,34 +150,53 @@ def _step(
     done: float,
     expanded: int,
     on_survivor: Callable[[Node], None] | None,
-    deadline: Budget | None,
+    limit: SearchLimit,
 ) -> tuple[float, int]:
     """Take the next node off ``stack``: a leaf is counted and kept when not refuted, another
-    node is expanded and its children pushed. Returns the share of the tree decided and the
-    nodes expanded, updated. A node whose step an interrupt cuts is put back on the stack
-    (with its children, if they were pushed: the pending part may then overlap, which only
-    widens what is left unexplored)."""
+    node is expanded and its children pushed (those of a branching node followed ahead
+    first, to be joined: :func:`.joined.look_ahead`). Returns the share of the tree decided
+    and the nodes expanded, updated. A node whose step an interrupt cuts is put back on the
+    stack (with its children, if they were pushed: the pending part may then overlap, which
+    only widens what is left unexplored)."""
     graph = explorer.graph
     node = stack.pop()
     finished = False
+    applications = graph.applications
     try:
         if node.depth == len(explorer.problem.decisions):
-            if not explorer.refuted_leaf(node):
-                explorer.stats.survivors += 1
-                survivors.append(node)
-                if on_survivor is not None:
-                    on_survivor(node)
+            leaves = [node] if node.lanes is None else _combined(explorer, node)
+            for leaf in leaves:
+                if not explorer.refuted_leaf(leaf):
+                    explorer.stats.survivors += 1
+                    survivors.append(leaf)
+                    if on_survivor is not None:
+                        on_survivor(leaf)
             finished = True
+            spend(limit.deadline, COSTS["operator"] * (graph.applications - applications))
             return done + node.share, expanded
-        applications = graph.applications
         kids, options = explorer.children(node)
+        share = node.share * (options - len(kids)) / options
+        cost = COSTS["node"]
+        if explorer.joins and len(kids) > 1 and node.lanes is None:
+            spend(limit.deadline, cost + COSTS["operator"] * (graph.applications - applications))
+            kids, more, decided = look_ahead(explorer, kids, limit, expanded + 1)  # spends its own
+            cost, applications = 0.0, graph.applications
+            expanded, share = expanded + more, share + decided
         stack.extend(reversed(kids))
         finished = True
     finally:
         if not finished:
             stack.append(node)
-    spend(deadline, COSTS["node"] + COSTS["operator"] * (graph.applications - applications))
-    return done + node.share * (options - len(kids)) / options, expanded + 1
+    spend(limit.deadline, cost + COSTS["operator"] * (graph.applications - applications))
+    return done + share, expanded + 1
+
+
+def _combined(explorer: Explorer, leaf: Node) -> list[Node]:
+    """The hypotheses of a joined walk's ``leaf``: each lane followed by its suffix, those
+    not refuted (:func:`.joined.combine`)."""
+    assert leaf.lanes is not None
+    out = [combine(explorer, lane, leaf) for lane in leaf.lanes.nodes]
+    return [c for c in out if c is not None]
 
 
 def _maintain(
@@ -186,11 +204,20 @@ def _maintain(
 ) -> tuple[list[Node], list[Node], list[Node]]:
     """Let the shared graph rebase and compact; the nodes re-expressed, same boxes (those
     of the dive's kept expansions too, each node object once, so that a node on the stack
-    is still the one its kept expansion names)."""
+    is still the one its kept expansion names; a joined node's lanes too)."""
     held = [*stack, *survivors, *pinned, *explorer.expansions.nodes()]
+    lanes = {id(n.lanes): n.lanes for n in held if n.lanes is not None}
+    held += [lane for group in lanes.values() for lane in group.nodes]
     unique = {id(n): n for n in held}
     overlays = explorer.graph.maintain([n.overlay for n in unique.values()])
     new = {key: replace(n, overlay=o) for (key, n), o in zip(unique.items(), overlays, strict=True)}
+    moved = {
+        key: replace(group, nodes=tuple(new[id(lane)] for lane in group.nodes))
+        for key, group in lanes.items()
+    }
+    for key, n in new.items():
+        if n.lanes is not None:
+            new[key] = replace(n, lanes=moved[id(n.lanes)])
     explorer.expansions.renamed(new)
     return (
         [new[id(n)] for n in stack],
@@ -288,6 +315,7 @@ def solve_unknown(
     explorer.deadline = deadline
     max_nodes = options.max_nodes
     messages: list[str] = []
+    explorer.joins = True
     root = explorer.root()
     tally = Tally(explorer, on_survivor)
     tally.envelope.set_root(root)
@@ -314,6 +342,7 @@ def solve_unknown(
         explorer.expansions.clear()  # what the search did not take back: its memory
         for node in outcome.unexplored:  # the truth may lie under any of them
             tally.envelope.add(node)
+        unexplored = [p for n in outcome.unexplored for p in lane_paths(n, explorer.n_named)]
         if outcome.stop_reason is not None and not outcome.survivors and not early.finished:
             # nothing found: the stages after the search have nothing to decide, so the
             # dive goes on with what they would have had (less a reserve for its leaf)
@@ -323,12 +352,11 @@ def solve_unknown(
             more = SearchLimit(SCHEDULE.share(deadline, "walk"), max_nodes)
             early = dive(explorer, root, more, early, tracker=tracker)
             proof = proof or _proven(explorer, early, prove, tracker)
-        if join_leaf(explorer, tally, early, [n.decisions() for n in outcome.unexplored]):
+        if join_leaf(explorer, tally, early, unexplored):
             ranked = _best(explorer, [*outcome.survivors, *outcome.reserve, early.leaf], 2 * keep)
             outcome.survivors, outcome.reserve = ranked[:keep], ranked[keep:]
     else:
-        proof = None
-    unexplored = [n.decisions() for n in outcome.unexplored]
+        proof, unexplored = None, []
     solution = finish_search(
         log, explorer, tally, outcome.survivors, unexplored, outcome.stop_reason, options,
         None, start, messages, rank=rank, reserve=outcome.reserve, unexplored_covered=True,

@@ -15,6 +15,7 @@ from cuikslam.options import AMBIGUITY_LP_MIN_DECISIONS
 __all__ = [
     "AMBIGUITY_LP_GAP",
     "AMBIGUITY_LP_MIN_DECISIONS",
+    "Lanes",
     "Node",
     "SearchLimit",
     "SearchStatistics",
@@ -93,6 +94,10 @@ class SearchStatistics:
     """Scans the guess decided again reading by reading, where a scan at once was refuted."""
     guess_proven: int = 0
     """1 when the early proof is the guess's: the dive did not run."""
+    joins: int = 0
+    """Joined nodes made: lanes that agreed on their future, walked once (:mod:`.joined`)."""
+    joined_lanes: int = 0
+    """Lanes those joined nodes stand for."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -117,15 +122,35 @@ class Node:
     """Decisions from that node to the next one that may be (see ``AMBIGUITY_LP_GAP``)."""
     outliers: tuple[int, ...] = ()
     """Decisions on its path taken as outliers (landmark number ``OUTLIER``)."""
+    lanes: Lanes | None = None
+    """A joined node's lanes (:mod:`.joined`): then ``assigned`` holds only the decisions
+    made after them, ``blocks`` every lane's anonymous landmarks and those made since."""
 
     def decisions(self) -> list[int]:
-        """Landmark number of every decision made, oldest first."""
+        """Landmark number of every decision made, oldest first (of a joined node: those
+        made after its lanes, in its own numbering)."""
         out = []
         node = self.assigned
         while node is not None:
             out.append(node[0])
             node = node[1]
         return out[::-1]
+
+
+@dataclass(frozen=True, slots=True)
+class Lanes:
+    """Nodes of one depth whose common future is walked once, from their join
+    (:mod:`.joined`)."""
+
+    nodes: tuple[Node, ...]
+    depth: int
+    blocks: tuple[int, ...]
+    """Decisions that create an anonymous landmark in some lane, in order (the joined
+    node's landmark numbers follow the named landmarks' in this order)."""
+    common: frozenset[int]
+    """The joined node's landmark numbers that every lane holds."""
+    class_count: dict[str, int]
+    """Fewest landmarks of each class that a lane holds."""
 
 
 def stop_reason(deadline: Budget) -> str:

@@ -1,0 +1,77 @@
+"""The joined walk (:mod:`cuikslam.hypotheses.joined`): lanes that agree on their future
+are walked once; the truth is never cut, its boxes hold it, and the envelope holds it at
+every budget cut with joined nodes pending. Joins are forced on small worlds by joining
+lanes as soon as a scan starts, agreed on nothing (``JOIN_AGREE = 0``: soundness does not
+rest on their agreement, which only makes joining pay)."""
+
+from __future__ import annotations
+
+from unittest.mock import patch
+
+import pytest
+from hypothesis import HealthCheck, assume, given, note, settings
+
+import cuikslam.hypotheses.joined as joined
+from cuikslam.hypotheses import solve_unknown
+from cuikslam.simulate import simulate_random_world
+from test_envelope import envelope_misses
+from worlds import SEARCHED, World, true_index, truth_misses, worlds
+
+HEALTH = [HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large]
+NODE_CUTS = (1, 2, 3, 5, 8, 13, 21)
+
+
+def _solve(log, **options):
+    with patch.object(joined, "JOIN_AGREE", 0):
+        return solve_unknown(log, consistency="hull", max_hypotheses=10_000, **options)
+
+
+@pytest.mark.parametrize("naming", ["none", "mixed"])
+@settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=HEALTH)
+@given(world=worlds(**SEARCHED))
+def test_a_joined_search_keeps_the_truth_and_its_boxes_hold_it(world: World, naming: str) -> None:
+    log = world.log(naming)
+    note("\n".join(world.lines(naming)))
+    solution = _solve(log, max_nodes=5_000)
+    assume(solution.complete and solution.statistics["joins"] > 0)
+    named = world.named_ids(naming)
+    index = true_index(solution, world.truth, named)
+    assert index >= 0, solution.messages
+    assert truth_misses(solution.hypotheses[index], world.truth, named) == []
+    assert envelope_misses(solution, world.truth) == []
+
+
+@settings(max_examples=8, deadline=None, derandomize=True, suppress_health_check=HEALTH)
+@given(world=worlds(**SEARCHED))
+def test_the_envelope_holds_the_truth_at_every_cut_of_a_joined_search(world: World) -> None:
+    log = world.log("none")
+    note("\n".join(world.lines("none")))
+    assume(_solve(log, max_nodes=5_000).statistics["joins"] > 0)
+    for cut in NODE_CUTS:
+        solution = _solve(log, max_nodes=cut)
+        assert envelope_misses(solution, world.truth) == [], (cut, solution.messages)
+
+
+JOINING = [(2, 20, 8), (8, 30, 10), (10, 20, 8), (10, 40, 12), (11, 20, 8)]
+"""Worlds (seed, poses, landmarks) of ``simulate random`` (12 x 8 m, 4 m range) whose
+search joins lanes when forced to."""
+
+
+@pytest.mark.parametrize(("seed", "poses", "landmarks"), JOINING)
+def test_a_joined_search_finds_the_survivors_of_the_plain_one(
+    seed: int, poses: int, landmarks: int
+) -> None:
+    """Every survivor of the depth-first search is a survivor of the joined one, with the
+    same assignment."""
+    log, _ = simulate_random_world(
+        seed=seed, n_poses=poses, n_landmarks=landmarks, unknown=True, size=(12.0, 8.0),
+        max_range=4.0,
+    )  # fmt: skip
+    with patch.object(joined, "JOIN_MAX_LANES", 1):  # no look-ahead: depth first
+        plain = solve_unknown(log, consistency="hull", max_hypotheses=10_000)
+    both = _solve(log)
+    assert plain.complete and both.complete
+    assert plain.statistics["joins"] == 0 < both.statistics["joins"]
+    assert {tuple(h.assignment) for h in plain.hypotheses} <= {
+        tuple(h.assignment) for h in both.hypotheses
+    }
