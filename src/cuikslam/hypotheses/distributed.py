@@ -170,8 +170,7 @@ def search_distributed(
     tally = Tally(explorer, on_survivor)
     tally.envelope.set_root(root)  # the fallback for unexplored prefixes
     keep = max(1, options.max_hypotheses)
-    with SCHEDULE.walking(deadline) as searching:  # the rest decides its survivors
-        explorer.deadline = searching  # its nodes' lp windows and leaves' bisections too
+    with explorer.walking(deadline) as searching:  # the rest decides its survivors
         run = _Run(explorer, searching, max_nodes, keep)
         found: list[Node] = []
         split_s = merge_s = 0.0
@@ -194,7 +193,6 @@ def search_distributed(
             merge_start = time.perf_counter()
             found = _merge(explorer, root, tally, results, run.best)
             merge_s = time.perf_counter() - merge_start
-    explorer.deadline = deadline
     stats = explorer.stats
     stats.explored_fraction = min(1.0, run.done)
     if join_leaf(explorer, tally, early, run.unexplored()):

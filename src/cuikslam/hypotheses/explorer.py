@@ -16,12 +16,13 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Hashable
+from collections.abc import Hashable, Iterator
+from contextlib import contextmanager
 from dataclasses import replace
 
 import numpy as np
 
-from cuikslam.budget import Budget
+from cuikslam.budget import SCHEDULE, Budget
 from cuikslam.hypotheses._shared import EMPTY_OVERLAY, Overlay, SharedGraph
 from cuikslam.hypotheses.ambiguity import AmbiguityLp
 from cuikslam.hypotheses.bisection import Bisection, refute_by_bisection
@@ -106,6 +107,18 @@ class Explorer:
             problem, options.rtol, options.consistency, options.strengthen_during,
             options.local_frame, options.threads,
         )  # fmt: skip
+
+    @contextmanager
+    def walking(self, budget: Budget | None) -> Iterator[Budget | None]:
+        """The walk's share of ``budget`` (:meth:`.budget.Schedule.walking`), which the
+        explorer spends inside (its nodes' ``lp`` windows and its leaves' bisections, whose
+        caps are then measured where their spending is seen); ``budget`` again after."""
+        with SCHEDULE.walking(budget) as walk:
+            self.deadline = walk
+            try:
+                yield walk
+            finally:
+                self.deadline = budget
 
     # ---------------------------------------------------------------- precomputed
     def _completed_poses(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

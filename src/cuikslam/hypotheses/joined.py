@@ -12,10 +12,11 @@ walk (a *suffix*) is then checked against each lane in turn (:func:`combine`): t
 plus the suffix's constraints, narrowed once, and the leaf's bisection.
 
 A landmark that only some lanes hold (one lane's new landmark is another lane's known
-one) keeps no constraint in the joined walk but those of the suffixes that name it (a
-lane that does not hold it is not a lane of such a suffix): negative information, the class
-priors' separation and their counts apply to the landmarks every lane holds, and to the
-rest when a suffix is checked against a lane. An unexplored joined node stands for each of
+one) keeps in the joined walk only the constraints every lane holds (its slot is where
+its reading puts it, in every lane) and those of the suffixes that name it (a lane that
+does not hold it is not a lane of such a suffix): negative information, the class priors'
+separation and their counts apply to the landmarks every lane holds, and to the rest when
+a suffix is checked against a lane. An unexplored joined node stands for each of
 its lanes with its suffix (:func:`lane_paths`), and its boxes hold each of theirs.
 """
 
@@ -74,23 +75,17 @@ def can_join(explorer: Explorer, nodes: list[Node]) -> bool:
 
 
 def join(explorer: Explorer, nodes: list[Node]) -> Node:
-    """The joined node of ``nodes`` (:func:`can_join`): the hull of their boxes (of a
-    landmark only some hold, the hull over those), the constraints they all hold."""
+    """The joined node of ``nodes`` (:func:`can_join`): the hull of their boxes, every
+    variable's over every lane (a lane that does not hold a landmark still bounds its
+    slot, where its reading puts what it sees: a constraint of the root), and the
+    constraints they all hold."""
     graph, n_named = explorer.graph, explorer.n_named
-    p = explorer.problem
     blocks = tuple(sorted({k for n in nodes for k in n.blocks}))
     boxes = [graph.materialize(n.overlay) for n in nodes]
     lo = np.minimum.reduce([b[0] for b in boxes])
     hi = np.maximum.reduce([b[1] for b in boxes])
-    common: set[int] = set(range(n_named))
-    for j, k in enumerate(blocks):
-        holders = [i for i, n in enumerate(nodes) if k in n.blocks]
-        if len(holders) == len(nodes):
-            common.add(n_named + j)
-            continue
-        cols = np.array([p.decisions[k].slot_x, p.decisions[k].slot_x + 1])
-        lo[cols] = np.minimum.reduce([boxes[i][0][cols] for i in holders])
-        hi[cols] = np.maximum.reduce([boxes[i][1][cols] for i in holders])
+    common = set(range(n_named))
+    common.update(n_named + j for j, k in enumerate(blocks) if all(k in n.blocks for n in nodes))
     rows = nodes[0].overlay.rows
     for n in nodes[1:]:
         rows = np.intersect1d(rows, n.overlay.rows, assume_unique=True)

@@ -324,8 +324,7 @@ def solve_unknown(
     outcome = _Outcome([], [], None)
     keep = max(1, options.max_hypotheses)
     if root is not None:
-        with SCHEDULE.walking(deadline) as walk:
-            explorer.deadline = walk  # its nodes' lp windows and leaves' bisections too
+        with explorer.walking(deadline) as walk:
             limit = SearchLimit(walk, max_nodes)
             diving = SearchLimit(SCHEDULE.share(limit.deadline, "dive"), max_nodes)
             early, proof = early_hypothesis(explorer, root, diving, prove, tracker)
@@ -336,7 +335,6 @@ def solve_unknown(
                 explorer, root, limit, keep, found, tracker, reserve=keep,
                 pinned=[] if early.leaf is None else [early.leaf],
             )  # fmt: skip
-        explorer.deadline = deadline
         if early.leaf is not None:
             [early.leaf] = outcome.pinned
         explorer.expansions.clear()  # what the search did not take back: its memory
