@@ -203,6 +203,30 @@ def combine(explorer: Explorer, lane: Node, leaf: Node) -> Node | None:
     return node
 
 
+def checked_lanes(explorer: Explorer, node: Node) -> list[Node]:
+    """A joined ``node`` whose walk is 16, 32, 64, ... decisions past its join, with the
+    lanes that its decisions refute dropped (:func:`combine`): no lane left, nothing; one,
+    that lane followed by the walk's decisions, searched depth first from there; else the
+    joined node with fewer lanes (its box and constraints as they are: still a superset).
+    Joined, a lane that would have died soon after the join walks on in the hull, and the
+    walk costs more than the lanes apart (seed 7 of the 200-pose worlds: two lanes joined
+    at reading 107, 69.6 s against 44.7 s depth first). Other nodes are returned as they
+    are."""
+    lanes = node.lanes
+    if lanes is None:
+        return [node]
+    walked = node.depth - lanes.depth
+    if walked < JOIN_AGREE or walked & (walked - 1):
+        return [node]
+    alive = [(lane, combine(explorer, lane, node)) for lane in lanes.nodes]
+    alive = [(lane, c) for lane, c in alive if c is not None]
+    if len(alive) < 2:
+        return [replace(c, share=node.share) for _, c in alive]
+    if len(alive) == len(lanes.nodes):
+        return [node]
+    return [replace(node, lanes=replace(lanes, nodes=tuple(lane for lane, _ in alive)))]
+
+
 def leave_where_partial(explorer: Explorer, kids: list[Node]) -> list[Node]:
     """Children of a joined node, each child whose decision names a landmark that not every
     lane holds replaced by its lanes that hold it, each followed by the child's decisions

@@ -39,7 +39,13 @@ from cuikslam.hypotheses.dive import (
 )
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.finish import Rank, finish_search
-from cuikslam.hypotheses.joined import combine, lane_paths, leave_where_partial, look_ahead
+from cuikslam.hypotheses.joined import (
+    checked_lanes,
+    combine,
+    lane_paths,
+    leave_where_partial,
+    look_ahead,
+)
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.progress import ProgressTracker
 from cuikslam.hypotheses.tally import Tally
@@ -176,8 +182,12 @@ def _step(
             return done + node.share, expanded
         kids, options = explorer.children(node)
         share = node.share * (options - len(kids)) / options
-        if node.lanes is not None:
-            kids = leave_where_partial(explorer, kids)
+        if node.lanes is not None:  # what its decisions refute is decided
+            before = sum(k.share for k in kids)
+            kids = [
+                c for k in leave_where_partial(explorer, kids) for c in checked_lanes(explorer, k)
+            ]
+            share += before - sum(k.share for k in kids)
         cost = COSTS["node"]
         if explorer.joins and len(kids) > 1 and node.lanes is None:
             spend(limit.deadline, cost + COSTS["operator"] * (graph.applications - applications))
