@@ -16,7 +16,7 @@ import cuikslam.hypotheses.joined as joined
 from cuikslam.hypotheses import search, solve_unknown
 from cuikslam.simulate import simulate_random_world
 from test_envelope import envelope_misses
-from test_search_progress import associations
+from test_search_progress import associations, check_reports
 from worlds import SEARCHED, World, true_index, truth_misses, worlds
 
 HEALTH = [HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large]
@@ -96,14 +96,7 @@ def test_what_a_joined_search_reports_decided_every_survivor_agrees_on(
     rows = [associations(h.assignment, set()) for h in solution.hypotheses]
     searched = [r for r in reports if r.stage != "dive"]
     assert searched[-1].stage == "done"
-    before: set[int] = set()
-    for status in searched:
-        now = set(status.decided_positions)
-        assert before <= now, "a decided reading was taken back"
-        before = now
-        for i in now:
-            assert len({row[i] for row in rows}) == 1, (i, status)
-        assert solution.statistics["survivors"] <= 10**status.upper_log10 * (1 + 1e-9)
+    check_reports(searched, rows, solution.statistics["survivors"], truth=rows[0])
 
 
 @pytest.mark.parametrize(("seed", "poses", "landmarks"), JOINING)

@@ -72,6 +72,15 @@ def check_decided(world: World) -> None:
     rows = [associations(h.assignment, named) for h in solution.hypotheses]
     searched = [r for r in reports if r.stage != "dive"]
     assert searched and searched[-1].stage == "done" and searched[-1].pending == 0
+    check_reports(searched, rows, solution.statistics["survivors"], truth)
+    assert searched[-1].found >= solution.statistics["survivors"]
+
+
+def check_reports(
+    searched: list[SearchProgress], rows: list[list[object]], survivors: int, truth: list[object]
+) -> None:
+    """Reports in order: a decided reading stays decided, every survivor's ``rows`` and the
+    ``truth`` associate it alike, and the upper bound holds the ``survivors``."""
     before: set[int] = set()
     for status in searched:
         now = set(status.decided_positions)
@@ -79,10 +88,8 @@ def check_decided(world: World) -> None:
         before = now
         for i in now:
             assert all(row[i] == truth[i] for row in rows), (i, status)
-        survivors = solution.statistics["survivors"]
         assert status.found <= searched[-1].found
         assert survivors <= 10**status.upper_log10 * (1 + 1e-9) or survivors == 0
-    assert searched[-1].found >= solution.statistics["survivors"]
 
 
 def check_cuts(world: World, cuts: tuple[int, ...]) -> None:
