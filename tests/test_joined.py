@@ -13,10 +13,11 @@ import pytest
 from hypothesis import HealthCheck, assume, given, note, settings
 
 import cuikslam.hypotheses.joined as joined
-from cuikslam.hypotheses import search, solve_unknown
+from cuikslam.hypotheses import _shared, search, solve_unknown
 from cuikslam.simulate import simulate_random_world
 from test_envelope import envelope_misses
 from test_search_progress import associations, check_reports
+from test_shared_graph import _fingerprint
 from worlds import SEARCHED, World, true_index, truth_misses, worlds
 
 HEALTH = [HealthCheck.too_slow, HealthCheck.filter_too_much, HealthCheck.data_too_large]
@@ -28,14 +29,13 @@ def _solve(log, **options):
         return solve_unknown(log, consistency="hull", max_hypotheses=10_000, **options)
 
 
-@pytest.mark.parametrize("naming", ["none", "mixed"])
-@settings(max_examples=12, deadline=None, derandomize=True, suppress_health_check=HEALTH)
-@given(world=worlds(**SEARCHED))
-def test_a_joined_search_keeps_the_truth_and_its_boxes_hold_it(world: World, naming: str) -> None:
+def check_truth(world: World, naming: str, joins: int = 0) -> None:
+    """The truth survives a search that may join (that joins ``joins`` times at least: a
+    world that does not is assumed away), its boxes hold it, and so does the envelope."""
     log = world.log(naming)
     note("\n".join(world.lines(naming)))
     solution = _solve(log, max_nodes=5_000)
-    assume(solution.complete and solution.statistics["joins"] > 0)
+    assume(solution.complete and solution.statistics["joins"] >= joins)
     named = world.named_ids(naming)
     index = true_index(solution, world.truth, named)
     assert index >= 0, solution.messages
@@ -43,15 +43,43 @@ def test_a_joined_search_keeps_the_truth_and_its_boxes_hold_it(world: World, nam
     assert envelope_misses(solution, world.truth) == []
 
 
-@settings(max_examples=8, deadline=None, derandomize=True, suppress_health_check=HEALTH)
-@given(world=worlds(**SEARCHED))
-def test_the_envelope_holds_the_truth_at_every_cut_of_a_joined_search(world: World) -> None:
+def check_cuts(world: World, joins: int = 0) -> None:
+    """The envelope holds the truth at every node budget of a search that may join (as
+    :func:`check_truth`)."""
     log = world.log("none")
     note("\n".join(world.lines("none")))
-    assume(_solve(log, max_nodes=5_000).statistics["joins"] > 0)
+    assume(_solve(log, max_nodes=5_000).statistics["joins"] >= joins)
     for cut in NODE_CUTS:
         solution = _solve(log, max_nodes=cut)
         assert envelope_misses(solution, world.truth) == [], (cut, solution.messages)
+
+
+@pytest.mark.parametrize("naming", ["none", "mixed"])
+@settings(max_examples=4, deadline=None, derandomize=True, suppress_health_check=HEALTH)
+@given(world=worlds(**SEARCHED))
+def test_a_joined_search_keeps_the_truth_and_its_boxes_hold_it(world: World, naming: str) -> None:
+    check_truth(world, naming)
+
+
+@settings(max_examples=3, deadline=None, derandomize=True, suppress_health_check=HEALTH)
+@given(world=worlds(**SEARCHED))
+def test_the_envelope_holds_the_truth_at_every_cut_of_a_joined_search(world: World) -> None:
+    check_cuts(world)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("naming", ["none", "mixed"])
+@settings(max_examples=60, deadline=None, suppress_health_check=HEALTH)
+@given(world=worlds(**SEARCHED))
+def test_a_joined_search_keeps_the_truth_many(world: World, naming: str) -> None:
+    check_truth(world, naming, joins=1)
+
+
+@pytest.mark.slow
+@settings(max_examples=40, deadline=None, suppress_health_check=HEALTH)
+@given(world=worlds(**SEARCHED))
+def test_the_envelope_holds_the_truth_at_every_cut_of_a_joined_search_many(world: World) -> None:
+    check_cuts(world, joins=1)
 
 
 JOINING = [(2, 20, 8), (8, 30, 10), (10, 20, 8), (10, 40, 12), (11, 20, 8)]
@@ -123,3 +151,28 @@ def test_a_joined_box_holds_every_lanes_box(seed: int, poses: int, landmarks: in
     with patch.object(joined, "join", join):
         assert _solve(log).complete
     assert checked
+
+
+def test_maintenance_with_joined_nodes_pending_changes_no_result() -> None:
+    """The shared graph's housekeeping re-expresses the joined nodes and their lanes: the
+    same hypotheses, boxes bit for bit, as without it."""
+    log, _ = simulate_random_world(
+        seed=2, n_poses=20, n_landmarks=8, unknown=True, size=(12.0, 8.0), max_range=4.0
+    )
+    with patch.object(_shared, "MIN_MAINTENANCE_LOAD", 10**12):
+        never = _solve(log)
+    calls: list[int] = []
+    maintain = _shared.SharedGraph.maintain
+
+    def counted(graph, overlays):
+        calls.append(len(overlays))
+        return maintain(graph, overlays)
+
+    with (
+        patch.object(_shared, "MIN_MAINTENANCE_LOAD", 4),
+        patch.object(search, "MAINTAIN_EVERY", 4),
+        patch.object(_shared.SharedGraph, "maintain", counted),
+    ):
+        often = _solve(log)
+    assert never.statistics["joins"] > 0 and len(calls) >= 3
+    assert _fingerprint(never) == _fingerprint(often)

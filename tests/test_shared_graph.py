@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from cuikslam.graph.encoding import KIND, NO_FACTOR, OBSERVATION, ODOMETRY
-from cuikslam.hypotheses import _shared, search, solve_unknown
+from cuikslam.hypotheses import _shared, joined, search, solve_unknown
 from cuikslam.hypotheses import survivors as after_search
 from cuikslam.hypotheses._gates import gate
 from cuikslam.hypotheses._shared import EMPTY_OVERLAY, Overlay, SharedGraph
@@ -107,6 +107,8 @@ def test_maintenance_changes_no_result(
     monkeypatch.setattr(after_search, "BISECTION_PARTS_PER_NODE", 0)
     monkeypatch.setattr("cuikslam.hypotheses.explorer.LEAF_BISECTION_PARTS", 0)
     monkeypatch.setattr(_shared, "MIN_MAINTENANCE_LOAD", 10**12)
+    # depth first, so that 300 expansions find many survivors (test_joined.py: with lanes)
+    monkeypatch.setattr(joined, "JOIN_MAX_LANES", 1)
     never = solve_unknown(log, consistency="hull", max_nodes=300, local_frame=False)
     calls = {"rebase": 0, "compact": 0, "renamed": 0}
     for name in ("rebase", "compact"):
