@@ -37,6 +37,8 @@ __all__ = [
     "JOIN_MAX_LANES",
     "combine",
     "join",
+    "joined_children",
+    "joined_leaves",
     "joined_paths",
     "lane_paths",
     "leave_where_partial",
@@ -201,6 +203,23 @@ def combine(explorer: Explorer, lane: Node, leaf: Node) -> Node | None:
     if p.has_sensor and own and poses:
         node = explorer.unseen_scans(node, poses, only=np.array(own, dtype=np.int64))
     return node
+
+
+def joined_children(explorer: Explorer, kids: list[Node]) -> tuple[list[Node], float]:
+    """The children ``kids`` of a joined node as the search pushes them
+    (:func:`leave_where_partial`, then :func:`checked_lanes`), and the share of the tree
+    that their lanes refuted decided."""
+    before = sum(k.share for k in kids)
+    out = [c for k in leave_where_partial(explorer, kids) for c in checked_lanes(explorer, k)]
+    return out, before - sum(c.share for c in out)
+
+
+def joined_leaves(explorer: Explorer, leaf: Node) -> list[Node]:
+    """The hypotheses of a joined walk's ``leaf``: each lane followed by its suffix, those
+    not refuted (:func:`combine`)."""
+    assert leaf.lanes is not None
+    out = [combine(explorer, lane, leaf) for lane in leaf.lanes.nodes]
+    return [c for c in out if c is not None]
 
 
 def checked_lanes(explorer: Explorer, node: Node) -> list[Node]:

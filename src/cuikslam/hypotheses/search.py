@@ -39,13 +39,7 @@ from cuikslam.hypotheses.dive import (
 )
 from cuikslam.hypotheses.explorer import Explorer
 from cuikslam.hypotheses.finish import Rank, finish_search
-from cuikslam.hypotheses.joined import (
-    checked_lanes,
-    combine,
-    lane_paths,
-    leave_where_partial,
-    look_ahead,
-)
+from cuikslam.hypotheses.joined import joined_children, joined_leaves, lane_paths, look_ahead
 from cuikslam.hypotheses.problem import build_problem
 from cuikslam.hypotheses.progress import ProgressTracker
 from cuikslam.hypotheses.tally import Tally
@@ -170,7 +164,7 @@ def _step(
     applications = graph.applications
     try:
         if node.depth == len(explorer.problem.decisions):
-            leaves = [node] if node.lanes is None else _combined(explorer, node)
+            leaves = [node] if node.lanes is None else joined_leaves(explorer, node)
             for leaf in leaves:
                 if not explorer.refuted_leaf(leaf):
                     explorer.stats.survivors += 1
@@ -182,12 +176,9 @@ def _step(
             return done + node.share, expanded
         kids, options = explorer.children(node)
         share = node.share * (options - len(kids)) / options
-        if node.lanes is not None:  # what its decisions refute is decided
-            before = sum(k.share for k in kids)
-            kids = [
-                c for k in leave_where_partial(explorer, kids) for c in checked_lanes(explorer, k)
-            ]
-            share += before - sum(k.share for k in kids)
+        if node.lanes is not None:
+            kids, decided = joined_children(explorer, kids)
+            share += decided
         cost = COSTS["node"]
         if explorer.joins and len(kids) > 1 and node.lanes is None:
             spend(limit.deadline, cost + COSTS["operator"] * (graph.applications - applications))
@@ -201,14 +192,6 @@ def _step(
             stack.append(node)
     spend(limit.deadline, cost + COSTS["operator"] * (graph.applications - applications))
     return done + share, expanded + 1
-
-
-def _combined(explorer: Explorer, leaf: Node) -> list[Node]:
-    """The hypotheses of a joined walk's ``leaf``: each lane followed by its suffix, those
-    not refuted (:func:`.joined.combine`)."""
-    assert leaf.lanes is not None
-    out = [combine(explorer, lane, leaf) for lane in leaf.lanes.nodes]
-    return [c for c in out if c is not None]
 
 
 def _maintain(
