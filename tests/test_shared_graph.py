@@ -234,3 +234,27 @@ def test_gate_many_is_gate_per_landmark() -> None:
         many = graph.gate(node.overlay, d.pose_x, xs, d.bearing_var, d.range_var)
         one = [gate(lo, hi, d.pose_x, int(x), d.bearing_var, d.range_var) for x in xs]
         assert list(many) == one
+
+
+def test_a_met_box_keeps_angles_in_the_branch_s_turn() -> None:
+    """:meth:`SharedGraph.met` meets plain variables as intervals and angles modulo 2 pi:
+    a heading given one turn up still narrows the branch's, which stays in its own turn."""
+    explorer, root, _ = _explored(simulate_paper(seed=0, unknown=True)[0], max_nodes=1)
+    graph = explorer.graph
+    lo, hi = graph.materialize(root.overlay)
+    theta = explorer.problem.pose_x[max(explorer.problem.pose_x)] + 2
+    x = theta - 2
+    assert theta in graph.angle_variables() and x not in graph.angle_variables()
+    assert 0.02 < hi[theta] - lo[theta] < 6.0 and hi[x] - lo[x] > 0.02
+    other_lo, other_hi = lo.copy(), hi.copy()
+    mid = 0.5 * (lo[theta] + hi[theta])
+    other_lo[theta], other_hi[theta] = mid + 2 * np.pi, hi[theta] + 2 * np.pi + 1.0
+    other_lo[x] = 0.5 * (lo[x] + hi[x])
+    met = graph.met(root.overlay, other_lo, other_hi)
+    assert met is not None
+    new_lo, new_hi = graph.materialize(met)
+    assert mid - 1e-12 <= new_lo[theta] <= mid + 1e-12 < new_hi[theta] <= hi[theta]
+    assert new_lo[x] == other_lo[x] and new_hi[x] <= hi[x]
+    assert np.all(new_lo >= lo) and np.all(new_hi <= hi)
+    other_lo[theta], other_hi[theta] = hi[theta] + 0.01, hi[theta] + 0.02  # no turn meets it
+    assert graph.met(root.overlay, other_lo, other_hi) is None

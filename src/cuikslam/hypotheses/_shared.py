@@ -30,6 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cuikslam import interval as ia
+from cuikslam.graph import encoding as enc
 from cuikslam.graph.encoding import KIND, N_SLOTS, NO_FACTOR, factors_on
 from cuikslam.hypotheses import _kernels as k
 from cuikslam.hypotheses._gates import gate_many, pairs_within_reach
@@ -222,6 +224,32 @@ class SharedGraph:
         self._checkout(overlay)
         self.lo[variables], self.hi[variables] = lo, hi
         return self._apply(_NO_INT, self.factors_of(variables), variables)
+
+    def met(self, overlay: Overlay, lo: np.ndarray, hi: np.ndarray) -> Overlay | None:
+        """The branch of ``overlay`` with every variable's bounds met with ``[lo, hi]`` (a box
+        of all variables that holds every solution of the branch), propagated; None when
+        proven empty. Angles meet modulo 2 pi (:func:`.interval.ops.periodic_intersect`):
+        the two boxes may hold a heading or a bearing in different turns."""
+        mine = np.stack(self.materialize(overlay), axis=-1)
+        other = np.stack([lo, hi], axis=-1)
+        out = ia.intersect(mine, other)
+        angles = self.angle_variables()
+        with np.errstate(invalid="ignore"):  # unbounded angles (any bearing): no NaN comes out
+            out[angles] = ia.periodic_intersect(mine[angles], other[angles])
+        if np.any(ia.is_empty(out)):
+            return None
+        changed = np.flatnonzero(np.any(out != mine, axis=-1))
+        if len(changed) == 0:
+            return overlay
+        return self.narrowed_to(overlay, changed, out[changed, 0], out[changed, 1])
+
+    def angle_variables(self) -> np.ndarray:
+        """Variables that some pooled row reads as an angle (headings, turns, bearings):
+        their intervals are periodic."""
+        rows, kinds = self.rows[: self.n_rows], self.kinds[: self.n_rows]
+        named = [rows[:, enc.TA], rows[:, enc.TB], rows[kinds != enc.RELATIVE, enc.ANGLE]]
+        variables = np.unique(np.concatenate(named))
+        return variables[variables >= 0]
 
     def gate(
         self, overlay: Overlay, pose_x: int, landmark_xs: np.ndarray, bearing: int, distance: int

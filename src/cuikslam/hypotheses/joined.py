@@ -8,8 +8,9 @@ have agreed on every decision for :data:`JOIN_AGREE` readings, they are *joined*
 whose box is the hull of theirs and whose constraints are those every lane holds walks
 their common future once. Its constraints are a subset of every lane's and its box a
 superset, so what refutes it refutes every lane with the same future; a leaf of the joined
-walk (a *suffix*) is then checked against each lane in turn (:func:`combine`): the lane
-plus the suffix's constraints, narrowed once, and the leaf's bisection.
+walk (a *suffix*) is then checked against each lane in turn (:func:`combine`): the lane's
+box met with the leaf's (which holds every solution of every lane with that suffix), the
+suffix's constraints added, narrowed once, and the leaf's bisection.
 
 A landmark that only some lanes hold (one lane's new landmark is another lane's known
 one) keeps in the joined walk only the constraints every lane holds (its slot is where
@@ -170,16 +171,19 @@ def joined_paths(node: Node, n_named: int) -> list[list[int]]:
 
 def combine(explorer: Explorer, lane: Node, leaf: Node) -> Node | None:
     """The (partial) hypothesis of ``lane`` followed by the decisions of the joined walk's
-    node ``leaf`` (a leaf, or a node the walk leaves), its constraints narrowed once, with
-    the negative information of the scans they complete on what the lane alone holds;
-    None when the lane does not hold a landmark they name, or when the constraints,
-    negative information or a class prior refute it."""
+    node ``leaf`` (a leaf, or a node the walk leaves): the lane's box met with ``leaf``'s
+    (which carries what the walk's windows and ``lp`` narrowings proved), its constraints
+    added and narrowed once, with the negative information of the scans they complete on
+    what the lane alone holds; None when the lane does not hold a landmark they name, or
+    when the constraints, negative information or a class prior refute it."""
     lanes, p, graph, n_named = leaf.lanes, explorer.problem, explorer.graph, explorer.n_named
     assert lanes is not None
     numbers = _suffix_in(lanes, lane, leaf.decisions(), n_named)
     if numbers is None:
         return None
-    overlay = graph.add_rows(lane.overlay, np.setdiff1d(leaf.overlay.rows, lane.overlay.rows))
+    overlay = graph.met(lane.overlay, *graph.materialize(leaf.overlay))
+    if overlay is not None:
+        overlay = graph.add_rows(overlay, np.setdiff1d(leaf.overlay.rows, lane.overlay.rows))
     if overlay is None:
         explorer.stats.proven_empty += 1
         return None
