@@ -284,3 +284,39 @@ def test_fit_residuals_jacobian_matches_finite_differences() -> None:
         step[k] = h
         numeric = (model.fit_residuals(p + step)[0] - model.fit_residuals(p - step)[0]) / (2 * h)
         np.testing.assert_allclose(J[:, k], numeric, rtol=1e-5, atol=1e-6)
+
+
+def test_the_iterative_fit_spends_each_product_with_the_jacobian() -> None:
+    """Above ``LSMR_ABOVE`` parameters the fit's steps are iterative: each product by the
+    Jacobian spends its entries' work (a 1,000-pose log took 20 ms a product, uncounted:
+    a solve ran 1,883 s on a budget sized for 600), and a spent budget stops a step."""
+    from cuikslam.budget import COSTS, OutOfTime
+    from cuikslam.witness._dense import LSMR_ABOVE, dense_least_squares, tr_solver_for
+
+    n = LSMR_ABOVE + 20
+    rng = np.random.default_rng(0)
+    J = rng.normal(size=(2 * n, n))
+    target = rng.normal(size=2 * n)
+
+    def residuals(z: np.ndarray, jacobian: bool) -> tuple[np.ndarray, np.ndarray]:
+        return J @ z - target, J
+
+    spent: list[float] = []
+    bounds = (np.full(n, -np.inf), np.full(n, np.inf))
+    columns = np.ones(n, dtype=bool)
+    solver = tr_solver_for(n)
+    assert solver == "lsmr"
+    z = dense_least_squares(
+        residuals, np.zeros(n), lambda: None, 5, columns, bounds, solver, spend=spent.append
+    )
+    per_product = COSTS["product_entry"] * J.size  # a product by k vectors: k of them
+    assert len(spent) >= 4 and all((s / per_product).is_integer() for s in spent)
+    assert np.sum((J @ z - target) ** 2) < np.sum(target**2)
+
+    def refuse(units: float) -> None:
+        raise OutOfTime
+
+    with pytest.raises(OutOfTime):
+        dense_least_squares(
+            residuals, np.zeros(n), lambda: None, 5, columns, bounds, solver, spend=refuse
+        )

@@ -103,6 +103,7 @@ COSTS = {
     "factor_flop": 0.012,
     "verification": 1500.0,
     "interval_entry": 0.35,
+    "product_entry": 4.0e-4,
 }
 """Work units of one unit of work of each stage: a narrowing operator applied once; each
 row and column of an LP solved (an LP of r rows and c columns costs ``(r + c) *
@@ -117,11 +118,12 @@ the windows of a long log; the witness search's evaluation in its sparse world f
 Jacobian (computed, multiplied into the normal equations) and per (pose, landmark) pair
 of the sensor's negative information, and a multiply-add of each sparse factorisation of
 its normal equations (:func:`cuikslam.witness._levenberg.factor_work`, whose
-fill grows faster than the log); and its rigorous verification: a fixed cost, and one per
-interval operation. Measured so that a unit is about a
-microsecond of this machine in each stage (``benchmarks/bench_budget.py``,
-``benchmarks/bench_witness.py``); what matters is only that each is a fixed count of the
-same work on every machine."""
+fill grows faster than the log); its rigorous verification: a fixed cost, and one per
+interval operation; and each entry of a dense Jacobian multiplied by a vector in the fit's
+iterative steps (:func:`cuikslam.witness._dense.dense_least_squares`; 0.38 ns an entry).
+Measured so that a unit is about a microsecond of this machine in each stage
+(``benchmarks/bench_budget.py``, ``benchmarks/bench_witness.py``); what matters is only
+that each is a fixed count of the same work on every machine."""
 ONLINE_WORK_PER_POSE = 1_000.0
 """Work units an online session (:class:`cuikslam.online.Session`, ``cuikslam follow``)
 may spend narrowing before it gives a finished pose's box, by default: about 1 ms here;

@@ -118,6 +118,13 @@ class _Meter:
         if self.quota_end is not None and self.used > self.quota_end:
             raise _OverQuota
 
+    def spend(self, units: float) -> None:
+        """Work beside the evaluations (an iterative step's products); raises
+        :class:`OutOfTime` once the budget is spent."""
+        spend(self.deadline, units)
+        if expired(self.deadline):
+            raise OutOfTime
+
 
 def _polish_equalities(model: HypothesisModel, p: np.ndarray, iterations: int = 4) -> np.ndarray:
     """A few Gauss-Newton steps on the closure equalities (minimum-norm, free parameters)."""

@@ -120,7 +120,7 @@ def fit_cost(
         with blas_single_thread(), np.errstate(all="ignore"):
             z = dense_least_squares(
                 on_free, z0, meter.tick, max_evaluations, free, (lb, ub),
-                tr_solver=tr_solver_for(len(z0)), tol=CENTRE_TOLERANCE,
+                tr_solver=tr_solver_for(len(z0)), tol=CENTRE_TOLERANCE, spend=meter.spend,
             )  # fmt: skip
     except _OutOfWork:  # counted one evaluation past the limit: keep the start's cost
         z = z0
