@@ -45,6 +45,7 @@ def pytest_configure(config: pytest.Config) -> None:
     package that a test imports, ``benchmarks/jcbb.py`` and ``build_backend/``, still add
     their few constants when imported: strings, and one float, 900.0.)
     """
+    _compile_before_workers(config)
     for module in pkgutil.walk_packages(cuikslam.__path__, "cuikslam."):
         try:
             importlib.import_module(module.name)
@@ -52,3 +53,18 @@ def pytest_configure(config: pytest.Config) -> None:
             if (missing.name or "").startswith("cuikslam"):
                 raise
     ensure_round_to_nearest()
+
+
+def _compile_before_workers(config: pytest.Config) -> None:
+    """With pytest-xdist's workers (``-n``), compile every kernel into numba's cache here,
+    in the controller, before they start: two workers compiling one generalized ufunc at
+    once can crash the one that then loads it from the cache (numba issue 10128; a CI run
+    lost two workers in ``test_interval_backward.py`` that way). A warm cache loads in
+    seconds."""
+    workers = getattr(config.option, "numprocesses", None)
+    if not workers or hasattr(config, "workerinput"):
+        return
+    from cuikslam.cli.warm_up import PARTS, warm_part
+
+    for part in PARTS:
+        warm_part(part)

@@ -42,6 +42,7 @@ __all__ = [
     "bwd_sqr",
     "bwd_sqrt",
     "bwd_sub",
+    "compile_all",
     "contains",
     "cos",
     "div",
@@ -250,6 +251,18 @@ _DOCS: dict[str, str] = {
 }
 for _name in _KERNELS:  # module attributes only through __getattr__: compiled on first use
     del globals()[_name]
+
+
+def compile_all() -> None:
+    """Compile (or load from numba's cache) every array operation now.
+
+    Two processes that compile the same operation at once can leave numba's cache of a
+    generalized ufunc inconsistent and crash the one that loads it (numba issue 10128);
+    ``cuikslam warm-up`` and the test suite's parallel run compile them all first, in one
+    process.
+    """
+    for name in _KERNELS:
+        __getattr__(name)
 
 
 def __getattr__(name: str) -> Callable:
