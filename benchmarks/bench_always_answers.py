@@ -3,6 +3,8 @@
     python benchmarks/bench_always_answers.py                      # 10 worlds of 200 poses
     python benchmarks/bench_always_answers.py --seeds 3 --poses 100 --json out.json
     python benchmarks/bench_always_answers.py --poses 1000 --landmarks 50
+    python benchmarks/bench_always_answers.py --poses 1000 --landmarks 50 --seed 4 --seeds 1 \
+        --work-budget 2e9                                            # how much work seed 4 needs
 
 The worlds are the issue's (``cuikslam simulate random --poses 200 --landmarks 40 --size
 30,20 --max-range 6 --unknown``: every reading unlabelled, 40 landmarks of three look-alike
@@ -23,7 +25,9 @@ checked against the world's exact truth. Columns:
   the CPU seconds are what a quiet machine's wall time would be).
 
 ``--landmarks`` and ``--classes`` change the world (the issue's 1,000-pose worlds: 50
-landmarks; the simulator's three classes by default).
+landmarks; the simulator's three classes by default). ``--work-budget`` replaces the
+default budget (for measuring what a world needs; no walk reserve then). The JSON rows
+also hold the solve's expansions, operator applications and stage timings.
 """
 
 from __future__ import annotations
@@ -39,7 +43,9 @@ from pathlib import Path
 WORLD = {"n_landmarks": 40, "size": (30.0, 20.0), "max_range": 6.0}
 
 
-def _run(seed: int, n_poses: int, world: dict, queue: multiprocessing.Queue) -> None:
+def _run(
+    seed: int, n_poses: int, world: dict, work_budget: float | None, queue: multiprocessing.Queue
+) -> None:
     from cuikslam.results.association import envelope_report, rank_of
     from cuikslam.results.solution import PROVEN
     from cuikslam.simulate import simulate_random_world
@@ -48,7 +54,7 @@ def _run(seed: int, n_poses: int, world: dict, queue: multiprocessing.Queue) -> 
     solve(simulate_random_world(seed=seed, n_poses=5, n_landmarks=3, unknown=True)[0])
     log, truth = simulate_random_world(seed=seed, n_poses=n_poses, unknown=True, **world)
     start, cpu = time.perf_counter(), time.process_time()
-    solution = solve(log)
+    solution = solve(log) if work_budget is None else solve(log, work_budget=work_budget)
     wall, cpu = time.perf_counter() - start, time.process_time() - cpu
     stats = solution.statistics
     envelope = envelope_report(solution, truth)
@@ -71,6 +77,9 @@ def _run(seed: int, n_poses: int, world: dict, queue: multiprocessing.Queue) -> 
             "wall_s": wall,
             "cpu_s": cpu,
             "dive_nodes": stats.get("dive_nodes"),
+            "expansions": stats.get("branch_points"),
+            "operator_applications": stats.get("operator_applications"),
+            "timings": solution.timings,
             "load": os.getloadavg()[0],
         }
     )
@@ -85,6 +94,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--classes", help="landmark classes, comma-separated (default: the simulator's three)"
     )
+    parser.add_argument(
+        "--work-budget", type=float, help="work units of each solve (default: its auto budget)"
+    )
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
     world = {**WORLD, "n_landmarks": args.landmarks}
@@ -96,7 +108,9 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     for seed in range(args.seed, args.seed + args.seeds):
         queue: multiprocessing.Queue = multiprocessing.Queue()
-        process = multiprocessing.Process(target=_run, args=(seed, args.poses, world, queue))
+        process = multiprocessing.Process(
+            target=_run, args=(seed, args.poses, world, args.work_budget, queue)
+        )
         process.start()
         r = queue.get()
         process.join()
