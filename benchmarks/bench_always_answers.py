@@ -85,6 +85,17 @@ def _run(
     )
 
 
+def _units(text: str) -> float:
+    """A work budget from the command line: a positive number of units."""
+    try:
+        units = float(text)
+    except ValueError:
+        units = -1.0
+    if not units > 0 or units == float("inf"):
+        raise argparse.ArgumentTypeError(f"not a positive number of work units: {text!r}")
+    return units
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--poses", type=int, default=200)
@@ -95,7 +106,7 @@ def main(argv: list[str] | None = None) -> int:
         "--classes", help="landmark classes, comma-separated (default: the simulator's three)"
     )
     parser.add_argument(
-        "--work-budget", type=float, help="work units of each solve (default: its auto budget)"
+        "--work-budget", type=_units, help="work units of each solve (default: its auto budget)"
     )
     parser.add_argument("--json", type=Path)
     args = parser.parse_args(argv)
